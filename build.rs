@@ -1,0 +1,39 @@
+//! Bakes the actuator parameter file into typed constants.
+//!
+//! Reads `params/actuator.json`, or the file named by the `ACTUATOR_PARAMS` environment variable
+//! (a path relative to this crate's root, or absolute), validates it with `actuator-params`, and
+//! writes `$OUT_DIR/baked_params.rs`, which `src/params.rs` includes. An invalid file fails the
+//! build with the field and the reason.
+
+use std::path::PathBuf;
+
+fn main() {
+    println!("cargo:rerun-if-env-changed=ACTUATOR_PARAMS");
+    let manifest_dir =
+        PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
+    let path = match std::env::var("ACTUATOR_PARAMS") {
+        Ok(p) if !p.is_empty() => {
+            let p = PathBuf::from(p);
+            if p.is_absolute() {
+                p
+            } else {
+                manifest_dir.join(p)
+            }
+        }
+        _ => manifest_dir.join("params").join("actuator.json"),
+    };
+    println!("cargo:rerun-if-changed={}", path.display());
+    let params = match actuator_params::ActuatorParams::load(&path) {
+        Ok(p) => p,
+        Err(e) => {
+            // `cargo:warning` makes the reason visible in the summary; the panic fails the build.
+            println!("cargo:warning=invalid actuator parameters: {e}");
+            eprintln!("error: invalid actuator parameters: {e}");
+            std::process::exit(1);
+        }
+    };
+    let code = actuator_params::codegen::rust_constants(&params, &path.display().to_string());
+    let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"))
+        .join("baked_params.rs");
+    std::fs::write(&out, code).unwrap_or_else(|e| panic!("cannot write {}: {e}", out.display()));
+}

@@ -1,0 +1,377 @@
+//! Schema of the parameter file and its validation.
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::path::Path;
+
+/// Number of input levels of the Preisach grid the core is built for (paper, Section 5: "the
+/// discretization level ... was 25").
+pub const PREISACH_LEVELS: usize = 25;
+
+/// Number of cells of a grid with `levels` input levels: `levels (levels + 1) / 2`.
+pub const fn cell_count(levels: usize) -> usize {
+    levels * (levels + 1) / 2
+}
+
+/// Version of the schema this crate reads and writes.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// The whole parameter file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorParams {
+    /// Must equal [`SCHEMA_VERSION`].
+    pub schema_version: u32,
+    /// Physical constants of the actuator (paper, Sections 3-4).
+    pub actuator: Actuator,
+    /// The Preisach grid and its cell masses.
+    pub preisach: Preisach,
+    /// Control-loop settings.
+    pub control: Control,
+    /// Desired-trajectory generator (Van der Pol oscillator, paper Section 5).
+    pub trajectory: Trajectory,
+    /// Where these numbers come from. Free-form for tools; `source` is required.
+    pub provenance: Provenance,
+}
+
+/// Physical constants of the actuator.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Actuator {
+    /// N_m: number of turns of the coil.
+    pub coil_turns: f64,
+    /// A_m: cross-sectional area of the rod, m².
+    pub rod_area_m2: f64,
+    /// l_m: length of the rod, m.
+    pub rod_length_m: f64,
+    /// c0: coil factor, H = c0 I in the static limit, 1/m.
+    pub coil_factor_per_m: f64,
+    /// M_s: saturation magnetization, A/m.
+    pub saturation_magnetization_a_per_m: f64,
+    /// λ_s: saturation magnetostriction (dimensionless).
+    pub saturation_magnetostriction: f64,
+    /// f0: first resonance of the rod, Hz.
+    pub resonance_hz: f64,
+    /// R_eddy: eddy-current resistance, Ω.
+    pub eddy_resistance_ohm: f64,
+    /// ξ: damping ratio of the magnetoelastic dynamics (5).
+    pub damping_ratio: f64,
+}
+
+/// The Preisach grid: `levels` equal intervals of `[h_min, h_max]` and one mass per cell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Preisach {
+    /// L, the number of input levels. The core is built for [`PREISACH_LEVELS`].
+    pub levels: usize,
+    /// Lower end of the input (field) range, A/m.
+    pub h_min_a_per_m: f64,
+    /// Upper end of the input (field) range, A/m.
+    pub h_max_a_per_m: f64,
+    /// Cell masses in A/m, `L (L + 1) / 2` of them, in alpha-major order: the cell whose switch-down
+    /// threshold β lies in interval `i` and switch-up threshold α in interval `j` (`i <= j`) has
+    /// index `j (j + 1) / 2 + i`. The output is `M = Σ w·(±1)`, so `Σ w` is the saturation output.
+    pub weights_a_per_m: Vec<f64>,
+}
+
+/// Control-loop settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Control {
+    /// Rate of the control interrupt and of the model step, Hz.
+    pub sample_rate_hz: f64,
+    /// The coil current command is limited to `±current_limit_a`, A.
+    pub current_limit_a: f64,
+    /// Largest change of the current command per second, A/s.
+    pub current_slew_limit_a_per_s: f64,
+}
+
+/// Desired-trajectory generator: a Van der Pol oscillator `x'' - μ (1 - x²) x' + x = 0` in scaled
+/// time, mapped into a displacement band.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Trajectory {
+    /// μ of the oscillator (dimensionless, ≥ 0).
+    pub van_der_pol_mu: f64,
+    /// Angular frequency scale: the oscillator runs in time `ω t`, with `ω = 2π frequency_scale_hz`.
+    pub frequency_scale_hz: f64,
+    /// Lower edge of the displacement band the oscillator's limit cycle is mapped to, m.
+    pub displacement_min_m: f64,
+    /// Upper edge of the displacement band, m.
+    pub displacement_max_m: f64,
+}
+
+/// Provenance of the parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// What produced this file (e.g. "analytic default", "maglab identify").
+    pub source: String,
+    /// Free-form details (dataset, date, residuals, density formula...).
+    #[serde(default, flatten)]
+    pub details: serde_json::Map<String, serde_json::Value>,
+}
+
+/// An invalid parameter file: which field, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamsError {
+    /// The file (or other source name) that was read.
+    pub source_name: String,
+    /// Dotted path of the offending field, e.g. `preisach.weights_a_per_m[17]`; empty when the
+    /// document itself is unreadable.
+    pub field: String,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl fmt::Display for ParamsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.field.is_empty() {
+            write!(f, "{}: {}", self.source_name, self.reason)
+        } else {
+            write!(
+                f,
+                "{}: field `{}`: {}",
+                self.source_name, self.field, self.reason
+            )
+        }
+    }
+}
+
+impl std::error::Error for ParamsError {}
+
+impl ActuatorParams {
+    /// Reads and validates a parameter file.
+    pub fn load(path: &Path) -> Result<Self, ParamsError> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ParamsError {
+            source_name: name.clone(),
+            field: String::new(),
+            reason: format!("cannot read the file: {e}"),
+        })?;
+        Self::parse(&text, &name)
+    }
+
+    /// Parses and validates a parameter document; `source_name` is used in error messages.
+    pub fn parse(text: &str, source_name: &str) -> Result<Self, ParamsError> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let params: Self = serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner();
+            let message = inner.to_string();
+            // serde reports a missing field at its parent's path: name the field itself.
+            let (field, reason) = match message.strip_prefix("missing field `") {
+                Some(rest) => {
+                    let name = rest.split('`').next().unwrap_or(rest);
+                    let field = if path == "." || path.is_empty() {
+                        name.to_string()
+                    } else {
+                        format!("{path}.{name}")
+                    };
+                    (field, "missing field".to_string())
+                }
+                None => {
+                    let field = if path == "." { String::new() } else { path };
+                    (field, message)
+                }
+            };
+            ParamsError {
+                source_name: source_name.to_string(),
+                field,
+                reason,
+            }
+        })?;
+        params.validate(source_name)?;
+        Ok(params)
+    }
+
+    /// Serializes to pretty JSON (the format `build.rs` reads back).
+    pub fn to_json_pretty(&self) -> String {
+        let mut text = serde_json::to_string_pretty(self).unwrap_or_default();
+        text.push('\n');
+        text
+    }
+
+    /// Checks every constraint the core relies on.
+    pub fn validate(&self, source_name: &str) -> Result<(), ParamsError> {
+        let err = |field: &str, reason: String| ParamsError {
+            source_name: source_name.to_string(),
+            field: field.to_string(),
+            reason,
+        };
+        if self.schema_version != SCHEMA_VERSION {
+            return Err(err(
+                "schema_version",
+                format!(
+                    "this build reads version {SCHEMA_VERSION}, the file says {}",
+                    self.schema_version
+                ),
+            ));
+        }
+        let a = &self.actuator;
+        let positive = [
+            ("actuator.coil_turns", a.coil_turns),
+            ("actuator.rod_area_m2", a.rod_area_m2),
+            ("actuator.rod_length_m", a.rod_length_m),
+            ("actuator.coil_factor_per_m", a.coil_factor_per_m),
+            (
+                "actuator.saturation_magnetization_a_per_m",
+                a.saturation_magnetization_a_per_m,
+            ),
+            (
+                "actuator.saturation_magnetostriction",
+                a.saturation_magnetostriction,
+            ),
+            ("actuator.resonance_hz", a.resonance_hz),
+            ("actuator.damping_ratio", a.damping_ratio),
+            ("control.sample_rate_hz", self.control.sample_rate_hz),
+            ("control.current_limit_a", self.control.current_limit_a),
+            (
+                "control.current_slew_limit_a_per_s",
+                self.control.current_slew_limit_a_per_s,
+            ),
+            (
+                "trajectory.frequency_scale_hz",
+                self.trajectory.frequency_scale_hz,
+            ),
+        ];
+        for (field, value) in positive {
+            check_finite(field, value).map_err(|r| err(field, r))?;
+            if value <= 0.0 {
+                return Err(err(field, format!("must be > 0, got {value}")));
+            }
+        }
+        let non_negative = [
+            ("actuator.eddy_resistance_ohm", a.eddy_resistance_ohm),
+            ("trajectory.van_der_pol_mu", self.trajectory.van_der_pol_mu),
+        ];
+        for (field, value) in non_negative {
+            check_finite(field, value).map_err(|r| err(field, r))?;
+            if value < 0.0 {
+                return Err(err(field, format!("must be >= 0, got {value}")));
+            }
+        }
+        let finite = [
+            (
+                "trajectory.displacement_min_m",
+                self.trajectory.displacement_min_m,
+            ),
+            (
+                "trajectory.displacement_max_m",
+                self.trajectory.displacement_max_m,
+            ),
+        ];
+        for (field, value) in finite {
+            check_finite(field, value).map_err(|r| err(field, r))?;
+        }
+        let t = &self.trajectory;
+        if t.displacement_min_m >= t.displacement_max_m {
+            return Err(err(
+                "trajectory.displacement_min_m",
+                format!(
+                    "must be < trajectory.displacement_max_m ({} >= {})",
+                    t.displacement_min_m, t.displacement_max_m
+                ),
+            ));
+        }
+        let stroke_m = a.rod_length_m * a.saturation_magnetostriction;
+        if t.displacement_min_m < 0.0 || t.displacement_max_m > stroke_m {
+            return Err(err(
+                "trajectory.displacement_max_m",
+                format!(
+                    "the band [{}, {}] m must lie inside the actuator's stroke [0, {stroke_m:.4e}] m (l_m λ_s)",
+                    t.displacement_min_m, t.displacement_max_m
+                ),
+            ));
+        }
+        let nyquist = self.control.sample_rate_hz / 2.0;
+        if a.resonance_hz >= nyquist {
+            return Err(err(
+                "actuator.resonance_hz",
+                format!(
+                    "{} Hz is not below the control Nyquist frequency {nyquist} Hz",
+                    a.resonance_hz
+                ),
+            ));
+        }
+
+        let p = &self.preisach;
+        for (field, value) in [
+            ("preisach.h_min_a_per_m", p.h_min_a_per_m),
+            ("preisach.h_max_a_per_m", p.h_max_a_per_m),
+        ] {
+            check_finite(field, value).map_err(|r| err(field, r))?;
+        }
+        if p.h_min_a_per_m >= p.h_max_a_per_m {
+            return Err(err(
+                "preisach.h_min_a_per_m",
+                format!(
+                    "must be < preisach.h_max_a_per_m ({} >= {})",
+                    p.h_min_a_per_m, p.h_max_a_per_m
+                ),
+            ));
+        }
+        let implied_levels = levels_for_cells(p.weights_a_per_m.len());
+        if p.levels != PREISACH_LEVELS {
+            return Err(err(
+                "preisach.levels",
+                format!(
+                    "the core is built for {PREISACH_LEVELS} levels, the file says {}",
+                    p.levels
+                ),
+            ));
+        }
+        if p.weights_a_per_m.len() != cell_count(p.levels) {
+            let implied = match implied_levels {
+                Some(l) => format!(" (that is the count for {l} levels)"),
+                None => " (no level count gives that many cells)".to_string(),
+            };
+            return Err(err(
+                "preisach.weights_a_per_m",
+                format!(
+                    "{} levels need {} weights, the file has {}{implied}",
+                    p.levels,
+                    cell_count(p.levels),
+                    p.weights_a_per_m.len()
+                ),
+            ));
+        }
+        for (k, &w) in p.weights_a_per_m.iter().enumerate() {
+            let field = format!("preisach.weights_a_per_m[{k}]");
+            check_finite(&field, w).map_err(|r| err(&field, r))?;
+            if w < 0.0 {
+                return Err(err(&field, format!("a cell mass must be >= 0, got {w}")));
+            }
+        }
+        let total: f64 = p.weights_a_per_m.iter().sum();
+        if total <= 0.0 {
+            return Err(err(
+                "preisach.weights_a_per_m",
+                "all weights are zero: the operator has no output".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The saturation output of the Preisach operator, `Σ w` (A/m).
+    pub fn preisach_total_a_per_m(&self) -> f64 {
+        self.preisach.weights_a_per_m.iter().sum()
+    }
+}
+
+fn check_finite(_field: &str, value: f64) -> Result<(), String> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(format!("must be a finite number, got {value}"))
+    }
+}
+
+/// The level count `L` with `L (L + 1) / 2 == cells`, if any.
+pub fn levels_for_cells(cells: usize) -> Option<usize> {
+    (1..=1000).find(|&l| cell_count(l) == cells)
+}
+
+/// Index of cell `(i, j)` (β in interval `i`, α in interval `j`, `i <= j`) in the weight vector.
+pub const fn cell_index(i: usize, j: usize) -> usize {
+    j * (j + 1) / 2 + i
+}

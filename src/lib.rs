@@ -1,0 +1,18 @@
+//! `magctl`: the no_std core of a rate-dependent hysteresis controller for a magnetostrictive
+//! (Terfenol-D) actuator, after Tan & Baras, "Modeling and Control of a Magnetostrictive
+//! Actuator" (paper in `../shared/paper/`).
+//!
+//! * [`preisach`]: the Preisach operator `M = Γ[H]` on a fixed 25-level grid with a density uniform
+//!   inside each cell (paper Section 4), its memory staircase, forward evaluation, the exact inverse
+//!   and the monotone solve `a·h + Γ(h) = r`.
+//! * [`inverse`]: inverse control (paper Section 5); here the static-model inverse (6).
+//! * [`params`]: the actuator parameters baked in at build time from the JSON file.
+//!
+//! Everything here builds for the host and for `thumbv7em-none-eabihf`; it never allocates and
+//! never panics on its update paths (errors are values).
+#![no_std]
+#![deny(missing_docs)]
+
+pub mod inverse;
+pub mod params;
+pub mod preisach;

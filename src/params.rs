@@ -1,0 +1,98 @@
+//! Typed actuator parameters, and the values baked in at build time.
+//!
+//! `build.rs` reads `params/actuator.json` (or the file named by `ACTUATOR_PARAMS`), validates it
+//! and generates [`BAKED_PARAMETERS`]; this module only defines the types (same field names and
+//! units as the JSON schema in `docs/params.md`, in f32) and derived quantities.
+
+use crate::preisach::CELL_COUNT;
+
+/// Permeability of vacuum μ0, H/m.
+pub const VACUUM_PERMEABILITY_H_PER_M: f32 = 1.256_637_1e-6;
+
+/// Physical constants of the actuator (paper Sections 3-4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Actuator {
+    /// N_m: number of turns of the coil.
+    pub coil_turns: f32,
+    /// A_m: cross-sectional area of the rod, m².
+    pub rod_area_m2: f32,
+    /// l_m: length of the rod, m.
+    pub rod_length_m: f32,
+    /// c0: coil factor (H = c0 I in the static limit), 1/m.
+    pub coil_factor_per_m: f32,
+    /// M_s: saturation magnetization, A/m.
+    pub saturation_magnetization_a_per_m: f32,
+    /// λ_s: saturation magnetostriction.
+    pub saturation_magnetostriction: f32,
+    /// f0: first resonance, Hz.
+    pub resonance_hz: f32,
+    /// R_eddy: eddy-current resistance, Ω.
+    pub eddy_resistance_ohm: f32,
+    /// ξ: damping ratio of (5).
+    pub damping_ratio: f32,
+}
+
+impl Actuator {
+    /// c1 = R_eddy / (μ0 N_m A_m) of equation (4), in A/(m·s) per A of current... i.e. the
+    /// coefficient with `H' + M' = c1 (I - H / c0)`, unit 1/(m·s) (H, M in A/m, I in A).
+    pub fn eddy_coefficient_per_m_s(&self) -> f32 {
+        self.eddy_resistance_ohm
+            / (VACUUM_PERMEABILITY_H_PER_M * self.coil_turns * self.rod_area_m2)
+    }
+
+    /// Full stroke `l_m λ_s`, reached at `|M| = M_s` (equation (6)), m.
+    pub fn stroke_m(&self) -> f32 {
+        self.rod_length_m * self.saturation_magnetostriction
+    }
+}
+
+/// The Preisach grid of the parameter file: input range and cell masses (alpha-major order, see
+/// [`crate::preisach`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PreisachGrid {
+    /// Lower end of the field range, A/m.
+    pub h_min_a_per_m: f32,
+    /// Upper end of the field range, A/m.
+    pub h_max_a_per_m: f32,
+    /// Cell masses, A/m.
+    pub weights_a_per_m: [f32; CELL_COUNT],
+}
+
+/// Control-loop settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Control {
+    /// Control interrupt rate, Hz.
+    pub sample_rate_hz: f32,
+    /// Current command limit (±), A.
+    pub current_limit_a: f32,
+    /// Current command slew limit, A/s.
+    pub current_slew_limit_a_per_s: f32,
+}
+
+/// Van der Pol desired-trajectory settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trajectory {
+    /// μ of the oscillator.
+    pub van_der_pol_mu: f32,
+    /// Time scale: the oscillator runs in `2π frequency_scale_hz · t`, Hz.
+    pub frequency_scale_hz: f32,
+    /// Lower edge of the displacement band, m.
+    pub displacement_min_m: f32,
+    /// Upper edge of the displacement band, m.
+    pub displacement_max_m: f32,
+}
+
+/// All parameters of one actuator and its control loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ActuatorParameters {
+    /// Physical constants.
+    pub actuator: Actuator,
+    /// Preisach grid and masses.
+    pub preisach: PreisachGrid,
+    /// Control settings.
+    pub control: Control,
+    /// Desired-trajectory settings.
+    pub trajectory: Trajectory,
+}
+
+include!(concat!(env!("OUT_DIR"), "/baked_params.rs"));

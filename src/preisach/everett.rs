@@ -1,0 +1,313 @@
+//! Coefficients of the Preisach operator: the cell masses and the prefix-sum tables from which the
+//! Everett function `T(a, b) = μ{(β, α): b <= β <= α <= a}` is evaluated exactly in O(1).
+//!
+//! # The Everett function of a cell-uniform density
+//!
+//! Write `a = J + s` and `b = I + t` (normalized input, `J, I` grid intervals, `s, t ∈ [0, 1]`).
+//! For `I < J` the triangle `{b <= β <= α <= a}` covers
+//! * every cell with `I < i <= j < J` fully: the corner table `C[J][I+1]`;
+//! * in α-row `J`, the squares `(i, J)`, `I < i < J`, over a fraction `s`, and the diagonal
+//!   triangle `(J, J)` over `{J <= β <= α <= J+s}`: fraction `s²` of its half-square;
+//! * in β-column `I`, the squares `(I, j)`, `I < j < J`, over a fraction `1 - t`, and the diagonal
+//!   triangle `(I, I)` over a fraction `(1 - t)²`;
+//! * the corner square `(I, J)` over a fraction `s (1 - t)`.
+//!
+//! so `T = C[J][I+1] + s R + s² w_JJ + (1-t) K + (1-t)² w_II + s (1-t) w_IJ` with the row sum
+//! `R = Σ_{I<i<J} w_iJ` and column sum `K = Σ_{I<j<J} w_Ij` read from prefix tables. For `I == J`,
+//! `T = w_II (s - t)²` when `s >= t`. `T` is quadratic in `s` for fixed `b` and in `1 - t` for
+//! fixed `a`: that is what makes the inverse exact.
+//!
+//! Cost: one evaluation is about 12 flops and 6 table loads. Error: the tables are summed in f64
+//! and rounded once to f32, so each entry is within half an ulp of the exact sum; an evaluation
+//! adds at most ~8 roundings of values bounded by `Σ w`, i.e. `|ΔT| <= 8 ε Σ w` with
+//! `ε = 2⁻²⁴`.
+
+use super::grid::{cell_index, CELL_COUNT, LEVELS};
+
+/// Coefficients of `T(J + s, ·)` or `T(·, I + 1 - v)` as a quadratic `q0 + q1 u + q2 u²`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Quadratic {
+    pub q0: f32,
+    pub q1: f32,
+    pub q2: f32,
+}
+
+impl Quadratic {
+    #[inline]
+    pub fn at(&self, u: f32) -> f32 {
+        self.q0 + u * (self.q1 + u * self.q2)
+    }
+    /// Derivative at `u`.
+    #[inline]
+    pub fn slope(&self, u: f32) -> f32 {
+        self.q1 + 2.0 * u * self.q2
+    }
+}
+
+/// The Preisach measure on the fixed grid: the coefficients of the operator (`&self` everywhere;
+/// the memory is the separate [`super::PreisachState`]).
+///
+/// Built once by [`PreisachMeasure::new`], a `const fn`: for the baked parameters the tables are
+/// computed at compile time and live in flash (about 8 KiB).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PreisachMeasure {
+    pub(crate) h_min_a_per_m: f32,
+    pub(crate) h_max_a_per_m: f32,
+    /// Δ, width of one input interval, A/m.
+    pub(crate) cell_width_a_per_m: f32,
+    /// 1 / Δ.
+    pub(crate) cells_per_a_per_m: f32,
+    /// Σ w, the saturation output, A/m.
+    pub(crate) total_a_per_m: f32,
+    /// Largest mass per unit normalized area over all cells (triangles count double), A/m.
+    pub(crate) max_density_a_per_m: f32,
+    /// `w[j][i]` = mass of cell `(i, j)` for `i <= j`, 0 otherwise.
+    pub(crate) w: [[f32; LEVELS]; LEVELS],
+    /// `corner[J][I]` = `T(J, I)` for integers `0 <= I <= J <= LEVELS`.
+    pub(crate) corner: [[f32; LEVELS + 1]; LEVELS + 1],
+    /// `row_suffix[j][i]` = `Σ_{i <= i' <= j} w[j][i']`.
+    pub(crate) row_suffix: [[f32; LEVELS]; LEVELS],
+    /// `col_prefix[i][j]` = `Σ_{i <= j' <= j} w[j'][i]`.
+    pub(crate) col_prefix: [[f32; LEVELS]; LEVELS],
+}
+
+impl PreisachMeasure {
+    /// Builds the coefficients from the cell masses (alpha-major order, A/m) and the field range.
+    ///
+    /// The caller guarantees what `build.rs` / `actuator-params` validate: masses finite and
+    /// `>= 0`, `h_min < h_max`, finite. (Violations give a meaningless but panic-free operator.)
+    pub const fn new(
+        weights_a_per_m: &[f32; CELL_COUNT],
+        h_min_a_per_m: f32,
+        h_max_a_per_m: f32,
+    ) -> Self {
+        let mut w64 = [[0.0f64; LEVELS]; LEVELS];
+        let mut w = [[0.0f32; LEVELS]; LEVELS];
+        let mut total = 0.0f64;
+        let mut max_density = 0.0f64;
+        let mut j = 0;
+        while j < LEVELS {
+            let mut i = 0;
+            while i <= j {
+                let m = weights_a_per_m[cell_index(i, j)] as f64;
+                w64[j][i] = m;
+                w[j][i] = m as f32;
+                total += m;
+                let density = if i == j { 2.0 * m } else { m };
+                if density > max_density {
+                    max_density = density;
+                }
+                i += 1;
+            }
+            j += 1;
+        }
+        // corner[J][I] = Σ_{I <= i <= j < J} w_ij, by rows: corner[J][I] = corner[J-1][I] + Σ_{I<=i<=J-1} w[J-1][i].
+        let mut corner64 = [[0.0f64; LEVELS + 1]; LEVELS + 1];
+        let mut corner = [[0.0f32; LEVELS + 1]; LEVELS + 1];
+        let mut big_j = 1;
+        while big_j <= LEVELS {
+            let mut big_i = 0;
+            while big_i <= big_j {
+                let mut row = 0.0f64;
+                let mut i = big_i;
+                while i < big_j {
+                    row += w64[big_j - 1][i];
+                    i += 1;
+                }
+                let above = if big_i <= big_j - 1 {
+                    corner64[big_j - 1][big_i]
+                } else {
+                    0.0
+                };
+                corner64[big_j][big_i] = above + row;
+                corner[big_j][big_i] = corner64[big_j][big_i] as f32;
+                big_i += 1;
+            }
+            big_j += 1;
+        }
+        let mut row_suffix = [[0.0f32; LEVELS]; LEVELS];
+        let mut col_prefix = [[0.0f32; LEVELS]; LEVELS];
+        let mut j = 0;
+        while j < LEVELS {
+            let mut acc = 0.0f64;
+            let mut i = j + 1;
+            while i > 0 {
+                i -= 1;
+                acc += w64[j][i];
+                row_suffix[j][i] = acc as f32;
+            }
+            j += 1;
+        }
+        let mut i = 0;
+        while i < LEVELS {
+            let mut acc = 0.0f64;
+            let mut j = i;
+            while j < LEVELS {
+                acc += w64[j][i];
+                col_prefix[i][j] = acc as f32;
+                j += 1;
+            }
+            i += 1;
+        }
+        let width = (h_max_a_per_m as f64 - h_min_a_per_m as f64) / LEVELS as f64;
+        PreisachMeasure {
+            h_min_a_per_m,
+            h_max_a_per_m,
+            cell_width_a_per_m: width as f32,
+            cells_per_a_per_m: (1.0 / width) as f32,
+            total_a_per_m: total as f32,
+            max_density_a_per_m: max_density as f32,
+            w,
+            corner,
+            row_suffix,
+            col_prefix,
+        }
+    }
+
+    /// Lower end of the field range, A/m.
+    pub fn h_min_a_per_m(&self) -> f32 {
+        self.h_min_a_per_m
+    }
+    /// Upper end of the field range, A/m.
+    pub fn h_max_a_per_m(&self) -> f32 {
+        self.h_max_a_per_m
+    }
+    /// Width Δ of one grid interval, A/m.
+    pub fn cell_width_a_per_m(&self) -> f32 {
+        self.cell_width_a_per_m
+    }
+    /// Saturation output `Σ w`, A/m.
+    pub fn saturation_a_per_m(&self) -> f32 {
+        self.total_a_per_m
+    }
+    /// Largest mass per unit of normalized cell area (diagonal triangles count their mass twice,
+    /// since their area is 1/2), A/m.
+    pub fn max_density_a_per_m(&self) -> f32 {
+        self.max_density_a_per_m
+    }
+    /// Mass of cell `(i, j)`, A/m (0 outside the grid or below the diagonal).
+    pub fn cell_mass_a_per_m(&self, i: usize, j: usize) -> f32 {
+        if i <= j && j < LEVELS {
+            self.w[j][i]
+        } else {
+            0.0
+        }
+    }
+
+    /// Normalized input of field `h` (A/m), clamped to `[0, LEVELS]`. NaN maps to 0; callers
+    /// reject non-finite inputs before.
+    #[inline]
+    pub(crate) fn normalize(&self, h_a_per_m: f32) -> f32 {
+        let x = (h_a_per_m - self.h_min_a_per_m) * self.cells_per_a_per_m;
+        x.clamp(0.0, LEVELS as f32)
+    }
+
+    /// Field (A/m) at normalized input `x`.
+    #[inline]
+    pub(crate) fn denormalize(&self, x: f32) -> f32 {
+        self.h_min_a_per_m + x * self.cell_width_a_per_m
+    }
+
+    /// Everett function `T(a, b) = μ{b <= β <= α <= a}` for normalized `a, b ∈ [0, LEVELS]`
+    /// (0 when `a <= b`).
+    #[inline]
+    pub(crate) fn everett(&self, a: f32, b: f32) -> f32 {
+        if a <= b {
+            return 0.0;
+        }
+        let (big_j, s) = split(a);
+        let (big_i, t) = split(b);
+        self.quadratic_in_alpha(big_j, big_i, t).at(s)
+    }
+
+    /// `T(J + s, I + t)` as a quadratic in `s` (fixed `b = I + t`), valid for `J + s >= I + t`.
+    #[inline]
+    pub(crate) fn quadratic_in_alpha(&self, big_j: usize, big_i: usize, t: f32) -> Quadratic {
+        let big_j = big_j.min(LEVELS - 1);
+        let big_i = big_i.min(LEVELS - 1);
+        if big_i > big_j {
+            return Quadratic {
+                q0: 0.0,
+                q1: 0.0,
+                q2: 0.0,
+            };
+        }
+        let w_ii = self.w[big_i][big_i];
+        if big_i == big_j {
+            // T = w (s - t)² = w t² - 2 w t s + w s².
+            return Quadratic {
+                q0: w_ii * t * t,
+                q1: -2.0 * w_ii * t,
+                q2: w_ii,
+            };
+        }
+        let one_minus_t = 1.0 - t;
+        let w_jj = self.w[big_j][big_j];
+        let w_ij = self.w[big_j][big_i];
+        let row = self.row_suffix[big_j][(big_i + 1).min(LEVELS - 1)] - w_jj;
+        let column = self.col_prefix[big_i][big_j - 1] - w_ii;
+        let full = self.corner[big_j][(big_i + 1).min(LEVELS)];
+        Quadratic {
+            q0: full + one_minus_t * (column + one_minus_t * w_ii),
+            q1: row + one_minus_t * w_ij,
+            q2: w_jj,
+        }
+    }
+
+    /// `T(J + s, I + 1 - v)` as a quadratic in `v` (fixed `a = J + s`), valid for
+    /// `I + 1 - v <= J + s`.
+    #[inline]
+    pub(crate) fn quadratic_in_beta(&self, big_j: usize, s: f32, big_i: usize) -> Quadratic {
+        let big_j = big_j.min(LEVELS - 1);
+        let big_i = big_i.min(LEVELS - 1);
+        if big_i > big_j {
+            return Quadratic {
+                q0: 0.0,
+                q1: 0.0,
+                q2: 0.0,
+            };
+        }
+        let w_ii = self.w[big_i][big_i];
+        if big_i == big_j {
+            // T = w (s - t)², t = 1 - v: w (v - (1 - s))².
+            let c = 1.0 - s;
+            return Quadratic {
+                q0: w_ii * c * c,
+                q1: -2.0 * w_ii * c,
+                q2: w_ii,
+            };
+        }
+        let w_jj = self.w[big_j][big_j];
+        let w_ij = self.w[big_j][big_i];
+        let row = self.row_suffix[big_j][(big_i + 1).min(LEVELS - 1)] - w_jj;
+        let column = self.col_prefix[big_i][big_j - 1] - w_ii;
+        let full = self.corner[big_j][(big_i + 1).min(LEVELS)];
+        Quadratic {
+            q0: full + s * (row + s * w_jj),
+            q1: column + s * w_ij,
+            q2: w_ii,
+        }
+    }
+}
+
+/// Splits a normalized input into its grid interval and the offset inside it:
+/// `x = J + s`, `J ∈ [0, LEVELS - 1]`, `s ∈ [0, 1]` (`x = LEVELS` gives `J = LEVELS - 1, s = 1`).
+#[inline]
+pub(crate) fn split(x: f32) -> (usize, f32) {
+    // `as` saturates: negative and NaN give 0, never a panic.
+    let j = (x as usize).min(LEVELS - 1);
+    (j, x - j as f32)
+}
+
+/// Splits for a path going down: `x = I + t` with `t ∈ (0, 1]` where possible, so that the interval
+/// below an integer `x` is the one entered next.
+#[inline]
+pub(crate) fn split_down(x: f32) -> (usize, f32) {
+    let c = libm::ceilf(x);
+    let i = if c >= 1.0 {
+        (c as usize - 1).min(LEVELS - 1)
+    } else {
+        0
+    };
+    (i, x - i as f32)
+}

@@ -1,0 +1,366 @@
+//! The memory of the Preisach operator: the staircase of dominant reversal points.
+//!
+//! # Algebra
+//!
+//! The state is the alternating sequence `s_0 = 0 < ... ` of reversal points (normalized input)
+//! followed by the current input `u`: `s_0` is the lower edge of the range (the anchor, a
+//! minimum), `s_1` a maximum, `s_2` a minimum, and so on; the wiping-out property keeps the maxima
+//! decreasing and the minima increasing. The boundary of `P₊` is the staircase through these
+//! points, and
+//!
+//! `μ(P₊) = Σ_{k odd} T(s_k, s_{k-1}) - Σ_{k even, k>0} T(s_{k-1}, s_k) ± T(·, u)`
+//!
+//! (each rise from a minimum switches on the triangle under the new maximum, each fall switches
+//! off the triangle right of the new minimum). Every vertex stores the running sum up to itself,
+//! so the output is one stored value plus one Everett evaluation for the moving segment, and a
+//! wipe-out is a pop: an update costs O(1 + corners wiped out), never O(325).
+//!
+//! The direction of the moving segment follows from the parity of the last vertex: rising after a
+//! minimum (even index), falling after a maximum (odd index). Negative saturation is `[0]` with
+//! `u = 0`; positive saturation is `[0]` with `u = 25`.
+//!
+//! # Capacity and merging
+//!
+//! The staircase lives in a fixed `heapless::Vec` of `N` vertices ([`DEFAULT_CAPACITY`] = 64,
+//! 512 bytes). Each stored pair is a nested minor loop still "remembered"; a 25-level grid with a
+//! smooth drive rarely needs more than a dozen (the Van der Pol trajectory of the controller
+//! needs fewer than 8, the AC-demagnetized state 25). 64 leaves room for noisy, slowly decaying
+//! oscillations while keeping the worst-case merge error small (below).
+//!
+//! When a new reversal would overflow the buffer, the pair `(s_j, s_{j+1})` whose removal changes
+//! the output least *by area* is merged away (the smallest loop in the Preisach plane). Removing
+//! the pair between neighbours `s_{j-1}` and `s_{j+2}` removes exactly the rectangle
+//! `{β between s_{j-1} and s_{j+1}} × {α between s_j and s_{j+2}}` from `P₊` (or adds it), so the
+//! output changes by exactly `2 μ(rectangle)`, which is computed and accumulated in
+//! [`PreisachState::merge_error_a_per_m`]. Worst case: with `N` vertices the `N - 2` candidate
+//! rectangles have side sums adding up to at most `4 L` (the minima and the maxima each span at
+//! most the range `L` = [`LEVELS`]), so the smallest has area at most `(2 L / (N - 2))²` and
+//!
+//! `|ΔM_merge| <= 2 ρ_max (2 L / (N - 2))²`
+//!
+//! with `ρ_max` the largest cell density ([`super::PreisachMeasure::max_density_a_per_m`]);
+//! [`super::PreisachMeasure::merge_error_bound_a_per_m`] evaluates it. For N = 64 the area factor
+//! is 0.65 cell. Merge errors do not compound: each is a frozen rectangle until later input wipes
+//! it out, so the deviation from an unbounded memory is at most the sum of the merge errors.
+//!
+//! Cost of a merge: one scan over the `N - 2` candidates (a multiply and a compare each) plus four
+//! Everett evaluations; it only runs on overflow.
+
+use super::everett::PreisachMeasure;
+use super::grid::LEVELS;
+use heapless::Vec;
+
+/// Default staircase capacity (vertices, including the anchor). See the module docs.
+pub const DEFAULT_CAPACITY: usize = 64;
+
+/// A vertex of the staircase.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Vertex {
+    /// Normalized input of the reversal point.
+    pub x: f32,
+    /// `μ(P₊)` of the staircase from the anchor up to this vertex, A/m.
+    pub cum: f32,
+}
+
+/// A rejected input: the state is left unchanged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputError {
+    /// The input was NaN or infinite.
+    NonFinite,
+}
+
+/// The memory (state) of one Preisach operator: the staircase, the current input and the
+/// merge bookkeeping. Pair it with the [`PreisachMeasure`] that holds the coefficients.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PreisachState<const N: usize = DEFAULT_CAPACITY> {
+    pub(crate) vertices: Vec<Vertex, N>,
+    /// Current normalized input.
+    pub(crate) x: f32,
+    /// `μ(P₊)` at the current input, A/m.
+    pub(crate) plus_mass: f32,
+    merges: u32,
+    merge_error_a_per_m: f32,
+}
+
+impl<const N: usize> PreisachState<N> {
+    const CAPACITY_OK: () = assert!(N >= 4, "the staircase needs room for at least 4 vertices");
+
+    fn anchored(x: f32) -> Self {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::CAPACITY_OK;
+        let mut vertices = Vec::new();
+        let _ = vertices.push(Vertex { x: 0.0, cum: 0.0 });
+        PreisachState {
+            vertices,
+            x,
+            plus_mass: 0.0,
+            merges: 0,
+            merge_error_a_per_m: 0.0,
+        }
+    }
+
+    /// Number of stored vertices (anchor included).
+    pub fn len(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Always false: the anchor is always there.
+    pub fn is_empty(&self) -> bool {
+        self.vertices.is_empty()
+    }
+
+    /// The capacity `N`.
+    pub const fn capacity(&self) -> usize {
+        N
+    }
+
+    /// Reversal points as normalized inputs in `[0, 25]` (anchor first), for tests and plots.
+    pub fn reversal_points_normalized(&self) -> impl Iterator<Item = f32> + '_ {
+        self.vertices.iter().map(|v| v.x)
+    }
+
+    /// Current normalized input `x ∈ [0, 25]`.
+    pub fn input_normalized(&self) -> f32 {
+        self.x
+    }
+
+    /// How many times a pair was merged away because the buffer was full.
+    pub fn merges(&self) -> u32 {
+        self.merges
+    }
+
+    /// Sum of the exact output changes caused by merges so far, A/m: a bound on how far the output
+    /// is from that of an operator with unbounded memory.
+    pub fn merge_error_a_per_m(&self) -> f32 {
+        self.merge_error_a_per_m
+    }
+
+    #[inline]
+    fn last(&self) -> Vertex {
+        match self.vertices.last() {
+            Some(v) => *v,
+            None => Vertex { x: 0.0, cum: 0.0 },
+        }
+    }
+
+    #[inline]
+    pub(crate) fn last_index(&self) -> usize {
+        self.vertices.len().saturating_sub(1)
+    }
+
+    /// Vertex `k`'s input (0 when out of range: never happens for the indices used).
+    #[inline]
+    pub(crate) fn vertex_x(&self, k: usize) -> f32 {
+        self.vertices.get(k).map_or(0.0, |v| v.x)
+    }
+
+    /// Is the moving segment rising (last vertex a minimum)?
+    #[inline]
+    pub(crate) fn rising(&self) -> bool {
+        self.last_index() % 2 == 0
+    }
+}
+
+impl PreisachMeasure {
+    /// A state at negative saturation (every hysteron at -1, input at `h_min`).
+    pub fn negative_saturation<const N: usize>(&self) -> PreisachState<N> {
+        PreisachState::anchored(0.0)
+    }
+
+    /// A state at positive saturation (every hysteron at +1, input at `h_max`).
+    pub fn positive_saturation<const N: usize>(&self) -> PreisachState<N> {
+        let mut state = PreisachState::anchored(LEVELS as f32);
+        state.plus_mass = self.everett(LEVELS as f32, 0.0);
+        state
+    }
+
+    /// The demagnetized state: the staircase along `α = -β` left by an AC demagnetization, with
+    /// the input at the middle of the range.
+    ///
+    /// It is reached from negative saturation by reversals stepping inward one grid interval at a
+    /// time: maxima at `L - ½ - k`, minima at `k + 1`, `k = 0 .. ⌊L/2⌋`, then the input rises to
+    /// `L / 2`. Every horizontal and vertical step of that staircase has its midpoint on the line
+    /// `α + β = L`, so the two small triangles by which it deviates from the line around each
+    /// corner lie in the same cell with equal areas and opposite signs: with a density uniform per
+    /// cell they cancel exactly. Only the middle diagonal cell is approximated: there the state
+    /// holds `¼` of the cell switched on instead of `½`, an output offset of `-w_c / 2` (`w_c`
+    /// that cell's mass).
+    pub fn demagnetized<const N: usize>(&self) -> PreisachState<N> {
+        let mut state = self.negative_saturation::<N>();
+        let half = LEVELS / 2;
+        let mut k = 0;
+        while k < half {
+            self.move_to(&mut state, LEVELS as f32 - 0.5 - k as f32);
+            self.move_to(&mut state, (k + 1) as f32);
+            k += 1;
+        }
+        self.move_to(&mut state, 0.5 * LEVELS as f32);
+        state
+    }
+
+    /// Sets the input to `h_a_per_m` (A/m) and returns the output `M` (A/m). Inputs beyond the
+    /// grid saturate the memory. A NaN or infinite input is rejected and the state is unchanged.
+    ///
+    /// Cost: O(1 + reversal points wiped out); a merge scan of O(N) only when a new reversal finds
+    /// the buffer full.
+    pub fn apply<const N: usize>(
+        &self,
+        state: &mut PreisachState<N>,
+        h_a_per_m: f32,
+    ) -> Result<f32, InputError> {
+        if !h_a_per_m.is_finite() {
+            return Err(InputError::NonFinite);
+        }
+        self.move_to(state, self.normalize(h_a_per_m));
+        Ok(self.output_a_per_m(state))
+    }
+
+    /// Current output `M = 2 μ(P₊) - Σ w`, A/m.
+    #[inline]
+    pub fn output_a_per_m<const N: usize>(&self, state: &PreisachState<N>) -> f32 {
+        2.0 * state.plus_mass - self.total_a_per_m
+    }
+
+    /// Current input of the memory, A/m (clamped to the grid range).
+    pub fn input_a_per_m<const N: usize>(&self, state: &PreisachState<N>) -> f32 {
+        self.denormalize(state.x)
+    }
+
+    /// The worst-case output change of one merge for capacity `N`: `2 ρ_max (2 L / (N - 2))²`,
+    /// A/m (see the staircase docs).
+    pub fn merge_error_bound_a_per_m(&self, capacity: usize) -> f32 {
+        let side = 2.0 * LEVELS as f32 / (capacity.max(3) - 2) as f32;
+        2.0 * self.max_density_a_per_m * side * side
+    }
+
+    /// `μ(P₊)` contribution of the segment from vertex value `from` to `to` as the parity says:
+    /// `+T(to, from)` when rising, `-T(from, to)` when falling.
+    #[inline]
+    pub(crate) fn segment_term(&self, from: f32, to: f32, rising: bool) -> f32 {
+        if rising {
+            self.everett(to, from)
+        } else {
+            -self.everett(from, to)
+        }
+    }
+
+    /// Moves the memory to normalized input `x ∈ [0, LEVELS]` (assumed finite and clamped).
+    pub(crate) fn move_to<const N: usize>(&self, state: &mut PreisachState<N>, x: f32) {
+        if x == state.x {
+            return;
+        }
+        let rising = state.rising();
+        if rising != (x > state.x) {
+            self.reverse(state);
+        }
+        self.wipe_out(state, x);
+        state.x = x;
+        self.update_plus_mass(state);
+    }
+
+    /// Recomputes `μ(P₊)` at the current input from the last vertex.
+    #[inline]
+    pub(crate) fn update_plus_mass<const N: usize>(&self, state: &mut PreisachState<N>) {
+        let last = state.last();
+        state.plus_mass = last.cum + self.segment_term(last.x, state.x, state.rising());
+    }
+
+    /// Pops the reversal points the new segment end `x` passes (wiping-out property).
+    /// Each iteration pops at least one vertex, so the loop runs at most `N` times.
+    pub(crate) fn wipe_out<const N: usize>(&self, state: &mut PreisachState<N>, x: f32) {
+        loop {
+            let m = state.last_index();
+            if m % 2 == 0 {
+                // Rising from minimum s_m; s_{m-1} is the dominating maximum.
+                if m >= 2 && x >= state.vertex_x(m - 1) {
+                    state.vertices.truncate(m - 1);
+                    continue;
+                }
+            } else if m >= 3 && x <= state.vertex_x(m - 1) {
+                // Falling from maximum s_m past the dominating minimum s_{m-1}.
+                state.vertices.truncate(m - 1);
+                continue;
+            } else if m == 1 && x <= 0.0 {
+                // Falling to the bottom of the range: negative saturation.
+                state.vertices.truncate(1);
+                continue;
+            }
+            break;
+        }
+    }
+
+    /// The input reverses at the current point: it becomes a reversal point.
+    pub(crate) fn reverse<const N: usize>(&self, state: &mut PreisachState<N>) {
+        let m = state.last_index();
+        if m >= 1 && state.vertex_x(m) == state.x {
+            // Reversing straight back at the last reversal point: that reversal never happened.
+            state.vertices.truncate(m);
+            return;
+        }
+        if state.vertices.is_full() {
+            self.merge_smallest(state);
+        }
+        let _ = state.vertices.push(Vertex {
+            x: state.x,
+            cum: state.plus_mass,
+        });
+    }
+
+    /// Removes the pair of reversal points whose corner rectangle is smallest (see module docs),
+    /// accounting the exact output change.
+    fn merge_smallest<const N: usize>(&self, state: &mut PreisachState<N>) {
+        let m = state.last_index();
+        if m < 2 {
+            return;
+        }
+        // Candidates j = 1 ..= m-1; the right neighbour of the last one is the current input,
+        // which is about to become a reversal point.
+        let mut best_j = 1;
+        let mut best_area = f32::INFINITY;
+        for j in 1..m {
+            let right = if j + 2 <= m {
+                state.vertex_x(j + 2)
+            } else {
+                state.x
+            };
+            let area = (state.vertex_x(j + 1) - state.vertex_x(j - 1)).abs()
+                * (right - state.vertex_x(j)).abs();
+            if area < best_area {
+                best_area = area;
+                best_j = j;
+            }
+        }
+        let j = best_j;
+        let old_plus_mass = state.plus_mass;
+        // Shift vertices j+2.. down by two.
+        let len = state.vertices.len();
+        for k in j..len.saturating_sub(2) {
+            if let Some(src) = state.vertices.get(k + 2).copied() {
+                if let Some(dst) = state.vertices.get_mut(k) {
+                    *dst = src;
+                }
+            }
+        }
+        state.vertices.truncate(len - 2);
+        // Recompute the running sums from vertex j on: the pair terms after the removed corner are
+        // unchanged, so all later sums shift by the same delta.
+        let before = state
+            .vertices
+            .get(j - 1)
+            .copied()
+            .unwrap_or(Vertex { x: 0.0, cum: 0.0 });
+        let delta = if let Some(v) = state.vertices.get(j).copied() {
+            let new_cum = before.cum + self.segment_term(before.x, v.x, j % 2 == 1);
+            new_cum - v.cum
+        } else {
+            let new_plus = before.cum + self.segment_term(before.x, state.x, (j - 1) % 2 == 0);
+            new_plus - old_plus_mass
+        };
+        for v in state.vertices.iter_mut().skip(j) {
+            v.cum += delta;
+        }
+        state.plus_mass = old_plus_mass + delta;
+        state.merges = state.merges.saturating_add(1);
+        state.merge_error_a_per_m += 2.0 * delta.abs();
+    }
+}
