@@ -36,4 +36,36 @@ fn main() {
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"))
         .join("baked_params.rs");
     std::fs::write(&out, code).unwrap_or_else(|e| panic!("cannot write {}: {e}", out.display()));
+    firmware_link_setup(&manifest_dir);
+}
+
+/// Firmware builds (`target_os = "none"`): puts the selected board's `memory.x` (and `device.x`)
+/// on the linker search path and adds defmt's linker script to the firmware binaries. Host builds
+/// are untouched. (Board files: `boards/<board>/`; see src/board.)
+fn firmware_link_setup(manifest_dir: &std::path::Path) {
+    if std::env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
+        return;
+    }
+    let boards = [
+        ("CARGO_FEATURE_BOARD_MPS2_AN386", "mps2-an386"),
+        ("CARGO_FEATURE_BOARD_NUCLEO_F446RE", "nucleo-f446re"),
+    ];
+    let selected: Vec<&str> = boards
+        .iter()
+        .filter(|(feature, _)| std::env::var_os(feature).is_some())
+        .map(|(_, board)| *board)
+        .collect();
+    match selected.as_slice() {
+        [] => {}
+        [board] => {
+            let dir = manifest_dir.join("boards").join(board);
+            println!("cargo:rerun-if-changed={}", dir.display());
+            println!("cargo:rustc-link-search={}", dir.display());
+            println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
+        }
+        many => {
+            eprintln!("error: enable exactly one board feature, got {many:?}");
+            std::process::exit(1);
+        }
+    }
 }

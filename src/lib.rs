@@ -5,14 +5,23 @@
 //! * [`preisach`]: the Preisach operator `M = Γ[H]` on a fixed 25-level grid with a density uniform
 //!   inside each cell (paper Section 4), its memory staircase, forward evaluation, the exact inverse
 //!   and the monotone solve `a·h + Γ(h) = r`.
+//! * [`model`]: the dynamic model (4)-(5) stepped at the control rate, and the static model (6).
 //! * [`inverse`]: inverse control (paper Section 5); here the static-model inverse (6).
 //! * [`params`]: the actuator parameters baked in at build time from the JSON file.
+//! * [`trajectory`]: the Van der Pol desired trajectory integrated on the chip.
+//! * [`output`]: current command → DAC code (fixed point) → SPI DAC through embedded-hal.
+//! * `board` (firmware only, `target_os = "none"`): QEMU mps2-an386 and NUCLEO-F446RE support.
 //!
 //! Everything here builds for the host and for `thumbv7em-none-eabihf`; it never allocates and
 //! never panics on its update paths (errors are values).
 #![no_std]
 #![deny(missing_docs)]
 
+#[cfg(target_os = "none")]
+pub mod board;
 pub mod inverse;
+pub mod model;
+pub mod output;
 pub mod params;
 pub mod preisach;
+pub mod trajectory;

@@ -96,3 +96,10 @@ pub struct ActuatorParameters {
 }
 
 include!(concat!(env!("OUT_DIR"), "/baked_params.rs"));
+
+/// The Preisach measure of the baked parameters, its tables computed at compile time.
+pub static BAKED_MEASURE: crate::preisach::PreisachMeasure = crate::preisach::PreisachMeasure::new(
+    &BAKED_PARAMETERS.preisach.weights_a_per_m,
+    BAKED_PARAMETERS.preisach.h_min_a_per_m,
+    BAKED_PARAMETERS.preisach.h_max_a_per_m,
+);

@@ -1,1 +1,83 @@
-fn main() {}
+//! `maglab`: the host toolkit for the magnetostrictive actuator.
+//!
+//! One module per command (`cmd_<name>.rs`), each with a clap `Args` struct and a
+//! `run(&Args) -> anyhow::Result<()>`; shared pieces live in [`params_io`] (loading a parameter
+//! file into the core's f32 types) and [`plot`] (PNG + SVG figures with an embedded font).
+//!
+//! To add a command: write `src/cmd_<name>.rs` with `Args` and `run`, declare the module below,
+//! add a variant to [`Command`] and a match arm in [`main`].
+//!
+//! Exit codes: 0 success, 1 any other error, 2 an invalid parameter file (the message names the
+//! file, the field and the reason).
+
+mod cmd_excite;
+mod cmd_identify;
+mod cmd_loops;
+mod cmd_params;
+mod cmd_preisach_fit;
+mod cmd_simulate;
+mod params_io;
+mod plot;
+mod plot_preisach;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Host toolkit for the magnetostrictive (Terfenol-D) actuator after Tan & Baras.
+#[derive(Debug, Parser)]
+#[command(name = "maglab", version, about, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Trace the Preisach operator's initial curve, major loop and nested minor loops; print a
+    /// table and write loops.png/.svg and displacement.png/.svg.
+    Loops(cmd_loops::Args),
+    /// Run the dynamic model (4)-(5) or the static model (6) on sines, a current file or a Van der
+    /// Pol-shaped current; write CSVs, loops.png (displacement vs current) and traces.png.
+    Simulate(cmd_simulate::Args),
+    /// Write the default parameter file or check one.
+    Params(cmd_params::Args),
+    /// Write a quasi-static identification current (first-order reversal curves reaching every
+    /// Preisach cell).
+    Excite(cmd_excite::Args),
+    /// Identify the Preisach masses from a dataset folder and write the full parameter JSON.
+    Identify(cmd_identify::Args),
+    /// Fit a Preisach model to two columns of any CSV file.
+    PreisachFit(cmd_preisach_fit::FitArgs),
+    /// Predict with a fitted Preisach model on a CSV file and report the NRMSE.
+    PreisachPredict(cmd_preisach_fit::PredictArgs),
+}
+
+/// Exit code for an invalid parameter file.
+const EXIT_INVALID_PARAMS: u8 = 2;
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Loops(args) => cmd_loops::run(args),
+        Command::Simulate(args) => cmd_simulate::run(args),
+        Command::Params(args) => cmd_params::run(args),
+        Command::Excite(args) => cmd_excite::run(args),
+        Command::Identify(args) => cmd_identify::run(args),
+        Command::PreisachFit(args) => cmd_preisach_fit::run_fit(args),
+        Command::PreisachPredict(args) => cmd_preisach_fit::run_predict(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            let invalid_params = err
+                .chain()
+                .any(|cause| cause.is::<actuator_params::ParamsError>());
+            if invalid_params {
+                ExitCode::from(EXIT_INVALID_PARAMS)
+            } else {
+                ExitCode::FAILURE
+            }
+        }
+    }
+}

@@ -68,14 +68,10 @@ impl GaussianDensity {
                 for a in 0..q {
                     for b in 0..q {
                         // Sub-square (b along β, a along α); in a diagonal cell only α >= β counts.
-                        let factor = if i < j {
-                            1.0
-                        } else if a > b {
-                            1.0
-                        } else if a == b {
-                            0.5
-                        } else {
-                            0.0
+                        let factor = match (i < j, a.cmp(&b)) {
+                            (true, _) | (false, std::cmp::Ordering::Greater) => 1.0,
+                            (false, std::cmp::Ordering::Equal) => 0.5,
+                            (false, std::cmp::Ordering::Less) => 0.0,
                         };
                         if factor == 0.0 {
                             continue;

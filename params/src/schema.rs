@@ -171,7 +171,16 @@ impl ActuatorParams {
                 }
                 None => {
                     let field = if path == "." { String::new() } else { path };
-                    (field, message)
+                    // serde_json's wording for the two ways a JSON file can hold a non-finite
+                    // number: an overflowing literal (`1e999`) and a bare `NaN`/`Infinity`.
+                    let reason = if message.starts_with("number out of range") {
+                        format!("must be a finite number ({message})")
+                    } else if message.starts_with("expected value") {
+                        format!("not a JSON value; numbers must be finite, NaN and Infinity are not JSON ({message})")
+                    } else {
+                        message
+                    };
+                    (field, reason)
                 }
             };
             ParamsError {
@@ -312,10 +321,14 @@ impl ActuatorParams {
         }
         let implied_levels = levels_for_cells(p.weights_a_per_m.len());
         if p.levels != PREISACH_LEVELS {
+            let implied = match implied_levels {
+                Some(l) => format!("; its {} weights imply {l}", p.weights_a_per_m.len()),
+                None => String::new(),
+            };
             return Err(err(
                 "preisach.levels",
                 format!(
-                    "the core is built for {PREISACH_LEVELS} levels, the file says {}",
+                    "the core is built for {PREISACH_LEVELS} levels, the file says {}{implied}",
                     p.levels
                 ),
             ));
@@ -349,6 +362,12 @@ impl ActuatorParams {
                 "all weights are zero: the operator has no output".into(),
             ));
         }
+        if total > f32::MAX as f64 {
+            return Err(err(
+                "preisach.weights_a_per_m",
+                format!("the weights sum to {total:e}, beyond f32 (the core's saturation output)"),
+            ));
+        }
         Ok(())
     }
 
@@ -358,11 +377,18 @@ impl ActuatorParams {
     }
 }
 
+/// Finite, and finite once baked: the core stores every parameter as f32, so a value beyond
+/// `f32::MAX` would become an infinite constant.
 fn check_finite(_field: &str, value: f64) -> Result<(), String> {
-    if value.is_finite() {
-        Ok(())
-    } else {
+    if !value.is_finite() {
         Err(format!("must be a finite number, got {value}"))
+    } else if value.abs() > f32::MAX as f64 {
+        Err(format!(
+            "must be representable in f32 (|x| <= {:e}), got {value:e}",
+            f32::MAX
+        ))
+    } else {
+        Ok(())
     }
 }
 

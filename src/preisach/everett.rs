@@ -24,6 +24,15 @@
 
 use super::grid::{cell_index, CELL_COUNT, LEVELS};
 
+/// Table sums for one pair of grid intervals, see [`PreisachMeasure::strip_sums`].
+struct StripSums {
+    w_jj: f32,
+    w_ij: f32,
+    row: f32,
+    column: f32,
+    full: f32,
+}
+
 /// Coefficients of `T(J + s, ·)` or `T(·, I + 1 - v)` as a quadratic `q0 + q1 u + q2 u²`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Quadratic {
@@ -114,7 +123,7 @@ impl PreisachMeasure {
                     row += w64[big_j - 1][i];
                     i += 1;
                 }
-                let above = if big_i <= big_j - 1 {
+                let above = if big_i < big_j {
                     corner64[big_j - 1][big_i]
                 } else {
                     0.0
@@ -220,6 +229,25 @@ impl PreisachMeasure {
         self.quadratic_in_alpha(big_j, big_i, t).at(s)
     }
 
+    /// The table reads shared by both quadratic forms for cells `I < J` (see the module docs):
+    /// `w_JJ`, `w_IJ`, the row sum `R = Σ_{I<i<J} w_iJ`, the column sum `K = Σ_{I<j<J} w_Ij` and
+    /// the full-cell corner `C[J][I+1]`. Every index is clamped into its table, so the optimizer
+    /// can drop all bounds checks (the firmware's link-time no-panic proof relies on it).
+    #[inline(always)]
+    fn strip_sums(&self, big_j: usize, big_i: usize) -> StripSums {
+        let big_j = big_j.min(LEVELS - 1);
+        let big_i = big_i.min(LEVELS - 1);
+        let w_jj = self.w[big_j][big_j];
+        let w_ii = self.w[big_i][big_i];
+        StripSums {
+            w_jj,
+            w_ij: self.w[big_j][big_i],
+            row: self.row_suffix[big_j][(big_i + 1).min(LEVELS - 1)] - w_jj,
+            column: self.col_prefix[big_i][big_j.saturating_sub(1)] - w_ii,
+            full: self.corner[big_j][(big_i + 1).min(LEVELS)],
+        }
+    }
+
     /// `T(J + s, I + t)` as a quadratic in `s` (fixed `b = I + t`), valid for `J + s >= I + t`.
     #[inline]
     pub(crate) fn quadratic_in_alpha(&self, big_j: usize, big_i: usize, t: f32) -> Quadratic {
@@ -242,11 +270,8 @@ impl PreisachMeasure {
             };
         }
         let one_minus_t = 1.0 - t;
-        let w_jj = self.w[big_j][big_j];
-        let w_ij = self.w[big_j][big_i];
-        let row = self.row_suffix[big_j][(big_i + 1).min(LEVELS - 1)] - w_jj;
-        let column = self.col_prefix[big_i][big_j - 1] - w_ii;
-        let full = self.corner[big_j][(big_i + 1).min(LEVELS)];
+        let p = self.strip_sums(big_j, big_i);
+        let (w_jj, w_ij, row, column, full) = (p.w_jj, p.w_ij, p.row, p.column, p.full);
         Quadratic {
             q0: full + one_minus_t * (column + one_minus_t * w_ii),
             q1: row + one_minus_t * w_ij,
@@ -277,11 +302,8 @@ impl PreisachMeasure {
                 q2: w_ii,
             };
         }
-        let w_jj = self.w[big_j][big_j];
-        let w_ij = self.w[big_j][big_i];
-        let row = self.row_suffix[big_j][(big_i + 1).min(LEVELS - 1)] - w_jj;
-        let column = self.col_prefix[big_i][big_j - 1] - w_ii;
-        let full = self.corner[big_j][(big_i + 1).min(LEVELS)];
+        let p = self.strip_sums(big_j, big_i);
+        let (w_jj, w_ij, row, column, full) = (p.w_jj, p.w_ij, p.row, p.column, p.full);
         Quadratic {
             q0: full + s * (row + s * w_jj),
             q1: column + s * w_ij,

@@ -1,1 +1,100 @@
-fn main() {}
+//! `cargo xtask`: project automation in plain Rust (the cargo-xtask pattern; `.cargo/config.toml`
+//! aliases `cargo xtask` to `cargo run --package xtask --`).
+//!
+//! Commands live one per module and are listed in [`COMMANDS`]:
+//! * `setup` ([`setup`]): installs what is missing (the `thumbv7em-none-eabihf` target, rustfmt
+//!   and clippy, `qemu-system-arm`);
+//! * `test` ([`test`]): setup, then fmt, clippy, the workspace tests and the no_std build of the
+//!   core, the Markdown link check ([`doclinks`]), with a summary whose last line is `N passed, M failed`;
+//! * `demo` ([`demo`]): setup, then the host demo (`maglab loops`) into `out/`.
+//!
+//! # Adding a command
+//! 1. Write `src/<name>.rs` with `pub fn run(ctx: &Ctx, args: &[String]) -> anyhow::Result<()>`
+//!    (use [`util::Ctx::cargo`] / [`util::run_checked`] to run processes in the repository root).
+//! 2. Declare the module below (`mod <name>;`) and add a [`Command`] entry to [`COMMANDS`].
+//! 3. To make `cargo xtask test` run it as a step, add a [`test::Step`] to `test::steps` (the
+//!    marked hook there); to run it from `cargo xtask demo`, call it at the hook in `demo::run`.
+
+mod demo;
+mod doclinks;
+mod qemu;
+mod setup;
+mod test;
+mod util;
+
+use std::process::ExitCode;
+use util::Ctx;
+
+/// A subcommand: its name, a one-line description and its entry point (`args` are the words
+/// after the command name).
+pub struct Command {
+    /// What the user types after `cargo xtask`.
+    pub name: &'static str,
+    /// One line for `cargo xtask help`.
+    pub about: &'static str,
+    /// Runs the command.
+    pub run: fn(&Ctx, &[String]) -> anyhow::Result<()>,
+}
+
+/// Every subcommand, in the order `help` lists them.
+const COMMANDS: &[Command] = &[
+    Command {
+        name: "setup",
+        about: "install what is missing: thumbv7em-none-eabihf target, rustfmt, clippy, qemu-system-arm",
+        run: setup::run,
+    },
+    Command {
+        name: "test",
+        about: "setup, then fmt, clippy -D warnings, workspace tests, no_std build, doc links [--keep-going]",
+        run: test::run,
+    },
+    Command {
+        name: "qemu",
+        about: "build the mps2-an386 firmware, run it in QEMU, check commands, tracking, instruction counts, no-panic proof",
+        run: qemu::run,
+    },
+    Command {
+        name: "demo",
+        about: "setup, then `maglab loops` (release) writing out/loops.png and out/displacement.png",
+        run: demo::run,
+    },
+];
+
+fn usage() {
+    eprintln!("usage: cargo xtask <command> [args]\n\ncommands:");
+    for c in COMMANDS {
+        eprintln!("  {:<8} {}", c.name, c.about);
+    }
+    eprintln!("  {:<8} show this list", "help");
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(name) = args.first() else {
+        usage();
+        return ExitCode::from(2);
+    };
+    if matches!(name.as_str(), "help" | "-h" | "--help") {
+        usage();
+        return ExitCode::SUCCESS;
+    }
+    let Some(command) = COMMANDS.iter().find(|c| c.name == name) else {
+        eprintln!("error: unknown xtask command `{name}`\n");
+        usage();
+        return ExitCode::from(2);
+    };
+    let ctx = match Ctx::new() {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match (command.run)(&ctx, &args[1..]) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("\nerror: cargo xtask {name}: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,233 @@
+//! The regression over one or more experiments, accumulated as normal equations, and the
+//! excitation report.
+//!
+//! Row `t` of the design matrix holds the regressors `2 f_k(t) - 1` of the 325 cells (see
+//! [`crate::cells`]) for the memory state after the input history up to `t`, optionally followed
+//! by the affine columns `1` (offset) and `x / L - ½` (slope in normalized input, for a reversible
+//! component). Only the normal equations `AᵀA`, `Aᵀb`, `bᵀb` are kept (at most 327² numbers,
+//! whatever the number of samples).
+//!
+//! A cell is *excited* when its regressor takes more than one value over the rows that enter the
+//! fit; a constant column cannot be told apart from the other constant columns (and from an
+//! offset), so the data say nothing about that cell's own mass — [`Design::unexcited`] lists them
+//! and the fit decides what to do with them, openly ([`crate::fit::Unexcited`]).
+
+use crate::cells::fractions;
+use crate::memory::{InitialState, Memory, Piece};
+use crate::{CELL_COUNT, LEVELS};
+
+/// The Preisach grid: `LEVELS` equal intervals of `[h_min, h_max]` (input units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grid {
+    /// Bottom of the input range.
+    pub h_min: f64,
+    /// Top of the input range.
+    pub h_max: f64,
+}
+
+impl Grid {
+    /// Normalized input `(u - h_min) / Δ` (not clamped).
+    pub fn normalize(&self, u: f64) -> f64 {
+        (u - self.h_min) / self.cell_width()
+    }
+
+    /// Δ, the width of one interval.
+    pub fn cell_width(&self) -> f64 {
+        (self.h_max - self.h_min) / LEVELS as f64
+    }
+
+    /// A grid over the data range `[lo, hi]` widened by `margin` (a fraction of `hi - lo`) on each
+    /// side, so that the extreme samples do not sit on the grid edge.
+    pub fn around(lo: f64, hi: f64, margin: f64) -> Self {
+        let pad = (hi - lo) * margin;
+        Grid {
+            h_min: lo - pad,
+            h_max: hi + pad,
+        }
+    }
+}
+
+/// One experiment for the design: the input and output in fit units, which rows enter the fit,
+/// and the initial memory.
+#[derive(Debug, Clone, Copy)]
+pub struct Experiment<'a> {
+    /// Label for reports.
+    pub label: &'a str,
+    /// Input sequence (e.g. H in A/m).
+    pub input: &'a [f64],
+    /// Output sequence (e.g. M in A/m).
+    pub output: &'a [f64],
+    /// Rows that enter the fit (same length as `input`).
+    pub selected: &'a [bool],
+    /// Initial memory.
+    pub initial: InitialState,
+}
+
+/// Runs the memory through an experiment and calls `row(t, x_normalized, fractions)` for every
+/// sample `t` (after the input moved to sample `t`). Returns the number of samples whose input
+/// lay outside the grid (those saturate the memory: counted, not hidden).
+pub fn run_experiment(
+    grid: &Grid,
+    input: &[f64],
+    initial: InitialState,
+    mut row: impl FnMut(usize, f64, &[f64; CELL_COUNT]),
+) -> usize {
+    // Demagnetized: around the first input. Periodic: around the middle of the experiment's
+    // excursion (a centred periodic loop was reached by cycling down from larger amplitudes about
+    // its centre; the preconditioning period then wipes out everything inside the excursion).
+    let centre_x = if initial == InitialState::Periodic {
+        let (lo, hi) = input
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
+                (a.min(u), b.max(u))
+            });
+        grid.normalize(0.5 * (lo + hi))
+    } else {
+        input.first().map_or(0.0, |&u| grid.normalize(u))
+    };
+    let mut memory = Memory::initial(LEVELS, initial, centre_x);
+    if initial == InitialState::Periodic {
+        for &u in input {
+            memory.move_to(grid.normalize(u));
+        }
+    }
+    let mut pieces: Vec<Piece> = Vec::new();
+    let mut f = [0.0; CELL_COUNT];
+    let mut outside = 0;
+    let top = LEVELS as f64;
+    for (t, &u) in input.iter().enumerate() {
+        let x = grid.normalize(u);
+        if !(0.0..=top).contains(&x) {
+            outside += 1;
+        }
+        memory.move_to(x);
+        fractions(&memory, &mut pieces, &mut f);
+        row(t, x.clamp(0.0, top), &f);
+    }
+    outside
+}
+
+/// Normal equations of the regression and the excitation bookkeeping.
+#[derive(Debug, Clone)]
+pub struct Design {
+    /// Whether the two affine columns are present.
+    pub affine: bool,
+    /// Number of unknowns: 325, or 327 with the affine part.
+    pub unknowns: usize,
+    /// `AᵀA`, dense, row-major `unknowns × unknowns` (both triangles filled at the end).
+    pub ata: Vec<f64>,
+    /// `Aᵀb`.
+    pub atb: Vec<f64>,
+    /// `bᵀb`.
+    pub btb: f64,
+    /// Rows accumulated.
+    pub rows: usize,
+    /// Smallest and largest value of each cell's regressor over the rows.
+    pub column_range: Vec<(f64, f64)>,
+    /// Smallest and largest output over the rows.
+    pub output_range: (f64, f64),
+    /// Samples whose input was outside the grid, per experiment label.
+    pub outside: Vec<(String, usize)>,
+    /// Rows that were selected but skipped by the row stride.
+    pub strided_out: usize,
+}
+
+/// A column whose regressor varies by less than this over the fit rows is not excited
+/// (fractions are sums of a few exact areas: rounding is ~1e-15).
+pub const EXCITATION_THRESHOLD: f64 = 1e-9;
+
+impl Design {
+    /// Builds the normal equations over `experiments`. `output_scale` divides the outputs (the
+    /// fit works in units of the output range); `row_stride` keeps every n-th selected row (the
+    /// memory still sees every sample; the count of rows left out is reported).
+    pub fn build(
+        grid: &Grid,
+        experiments: &[Experiment<'_>],
+        affine: bool,
+        output_scale: f64,
+        row_stride: usize,
+    ) -> Self {
+        let unknowns = CELL_COUNT + if affine { 2 } else { 0 };
+        let mut design = Design {
+            affine,
+            unknowns,
+            ata: vec![0.0; unknowns * unknowns],
+            atb: vec![0.0; unknowns],
+            btb: 0.0,
+            rows: 0,
+            column_range: vec![(f64::INFINITY, f64::NEG_INFINITY); CELL_COUNT],
+            output_range: (f64::INFINITY, f64::NEG_INFINITY),
+            outside: Vec::new(),
+            strided_out: 0,
+        };
+        let stride = row_stride.max(1);
+        let mut a = vec![0.0; unknowns];
+        for e in experiments {
+            let mut selected_seen = 0usize;
+            let outside = run_experiment(grid, e.input, e.initial, |t, x, f| {
+                if !e.selected.get(t).copied().unwrap_or(false) {
+                    return;
+                }
+                selected_seen += 1;
+                if !(selected_seen - 1).is_multiple_of(stride) {
+                    design.strided_out += 1;
+                    return;
+                }
+                for k in 0..CELL_COUNT {
+                    a[k] = 2.0 * f[k] - 1.0;
+                    let r = &mut design.column_range[k];
+                    r.0 = r.0.min(a[k]);
+                    r.1 = r.1.max(a[k]);
+                }
+                if affine {
+                    a[CELL_COUNT] = 1.0;
+                    a[CELL_COUNT + 1] = x / LEVELS as f64 - 0.5;
+                }
+                let y = e.output[t];
+                design.output_range.0 = design.output_range.0.min(y);
+                design.output_range.1 = design.output_range.1.max(y);
+                let b = y / output_scale;
+                design.add_row(&a, b);
+            });
+            design.outside.push((e.label.to_string(), outside));
+        }
+        design.symmetrize();
+        design
+    }
+
+    fn add_row(&mut self, a: &[f64], b: f64) {
+        let n = self.unknowns;
+        for r in 0..n {
+            let ar = a[r];
+            if ar == 0.0 {
+                continue;
+            }
+            let row = &mut self.ata[r * n..(r + 1) * n];
+            for (c, &ac) in a.iter().enumerate().skip(r) {
+                row[c] += ar * ac;
+            }
+            self.atb[r] += ar * b;
+        }
+        self.btb += b * b;
+        self.rows += 1;
+    }
+
+    fn symmetrize(&mut self) {
+        let n = self.unknowns;
+        for r in 0..n {
+            for c in 0..r {
+                self.ata[r * n + c] = self.ata[c * n + r];
+            }
+        }
+    }
+
+    /// Cells whose regressor is constant over the fit rows (alpha-major indices).
+    pub fn unexcited(&self) -> Vec<usize> {
+        self.column_range
+            .iter()
+            .enumerate()
+            .filter(|(_, (lo, hi))| (hi - lo).is_nan() || hi - lo <= EXCITATION_THRESHOLD)
+            .map(|(k, _)| k)
+            .collect()
+    }
+}

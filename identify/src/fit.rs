@@ -1,0 +1,389 @@
+//! The cell masses by constrained, regularized least squares (paper Section 4, after its
+//! reference [5]), solved as a convex QP with `clarabel`.
+//!
+//! Unknowns, in units of the output scale `s` (the output range of the fit rows, so that the
+//! problem is well scaled whatever the units): the masses `w̃ = w / s` and, optionally, the affine
+//! part `c̃₀ + c̃₁ (x / L - ½)`. The objective is
+//!
+//! `J = (1/n) ‖A z - b̃‖² + λ_s S(w̃) + λ_r R(w̃)`
+//!
+//! * data term: mean squared residual relative to the output range (`b̃ = y / s`);
+//! * smoothness `S = (1/N_p) Σ_{neighbours a,b} ((ρ_a - ρ_b) / ρ_ref)²` over the cell densities
+//!   `ρ_k = w̃_k / area_k` (area 1 for squares, ½ for the diagonal half-squares), `N_p` pairs of
+//!   cells sharing an edge, `ρ_ref = 1 / L²` the mean density of a measure whose output range is
+//!   the data's (`Σ w̃ = ½` over the triangle of area `L²/2`). `λ_s = 1e-4` thus weighs a density
+//!   jump of 100 % between *every* pair of neighbours like a residual of 1 % RMS of the range.
+//! * ridge `R = (1/K) Σ_k ((ρ_k - ρ_k^prior) / ρ_ref)²` toward a prior (the base weights when
+//!   given, else zero).
+//!
+//! subject to `w̃ >= 0` (a Preisach measure is non-negative: Theorem 1's monotonicity and order
+//! preservation rely on it) and to `w̃_k` fixed for the unexcited cells when [`Unexcited`] says so.
+
+use crate::design::{Design, Experiment, Grid};
+use crate::{cell_index, CELL_COUNT, LEVELS};
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
+    SupportedConeT, ZeroConeT,
+};
+use std::fmt;
+
+/// What to do with cells the data did not excite (their regressor is constant).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unexcited {
+    /// Fix them at the prior (base) weights. Needs a prior.
+    KeepPrior,
+    /// Fix them at zero.
+    Zero,
+    /// Leave them to the regularization (needs `λ_s > 0` or `λ_r > 0`): smoothness extends the
+    /// neighbouring excited densities into them, the ridge pulls them to the prior.
+    Regularized,
+}
+
+impl Unexcited {
+    /// CLI names.
+    pub const NAMES: [(&'static str, Unexcited); 3] = [
+        ("keep-prior", Unexcited::KeepPrior),
+        ("zero", Unexcited::Zero),
+        ("regularized", Unexcited::Regularized),
+    ];
+
+    /// Parses a CLI name.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        Self::NAMES
+            .iter()
+            .find(|(n, _)| *n == text)
+            .map(|(_, u)| *u)
+            .ok_or_else(|| {
+                format!(
+                    "unknown treatment `{text}`; expected one of {}",
+                    Self::NAMES.map(|(n, _)| n).join(", ")
+                )
+            })
+    }
+
+    /// The CLI name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES
+            .iter()
+            .find(|(_, u)| *u == self)
+            .map_or("?", |(n, _)| n)
+    }
+}
+
+/// Options of the fit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitOptions {
+    /// λ_s, smoothness weight (dimensionless, see the module docs).
+    pub smoothness: f64,
+    /// λ_r, ridge weight toward the prior.
+    pub ridge: f64,
+    /// Fit the affine/reversible part `offset + slope · input` jointly.
+    pub affine: bool,
+    /// Treatment of unexcited cells.
+    pub unexcited: Unexcited,
+    /// Keep every n-th selected row in the regression (1 = all).
+    pub row_stride: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            smoothness: 1e-6,
+            ridge: 0.0,
+            affine: false,
+            unexcited: Unexcited::Regularized,
+            row_stride: 1,
+        }
+    }
+}
+
+/// The fitted masses and affine part, with diagnostics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitResult {
+    /// Cell masses (output units), alpha-major.
+    pub weights: Vec<f64>,
+    /// Affine offset (output units); 0 without the affine part.
+    pub offset: f64,
+    /// Affine slope (output units per input unit); 0 without the affine part.
+    pub slope: f64,
+    /// Cells the fit rows did not excite (alpha-major indices).
+    pub unexcited: Vec<usize>,
+    /// Rows in the regression.
+    pub rows: usize,
+    /// Selected rows left out by the row stride.
+    pub strided_out: usize,
+    /// RMS residual over the regression rows (output units).
+    pub rms_residual: f64,
+    /// The output scale `s` (range of the fit outputs).
+    pub output_scale: f64,
+    /// Samples outside the grid (clamped = saturated memory), per experiment.
+    pub outside: Vec<(String, usize)>,
+    /// Solver status and iteration count.
+    pub solver: String,
+}
+
+/// A fit that cannot be done.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitError(pub String);
+
+impl fmt::Display for FitError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for FitError {}
+
+/// Area of cell `k` in normalized units.
+fn cell_area(k: usize) -> f64 {
+    let (i, j) = crate::cell_of_index(k);
+    if i == j {
+        0.5
+    } else {
+        1.0
+    }
+}
+
+/// Pairs of cells sharing an edge.
+pub fn neighbour_pairs() -> Vec<(usize, usize)> {
+    let mut pairs = Vec::new();
+    for j in 0..LEVELS {
+        for i in 0..=j {
+            if i < j {
+                pairs.push((cell_index(i, j), cell_index(i + 1, j)));
+            }
+            if j + 1 < LEVELS {
+                pairs.push((cell_index(i, j), cell_index(i, j + 1)));
+            }
+        }
+    }
+    pairs
+}
+
+/// Fits the masses on `grid` to `experiments`. `prior` (output units, 325 masses) is the ridge
+/// target and the value of unexcited cells under [`Unexcited::KeepPrior`].
+pub fn fit(
+    grid: &Grid,
+    experiments: &[Experiment<'_>],
+    prior: Option<&[f64]>,
+    options: &FitOptions,
+) -> Result<FitResult, FitError> {
+    if !(grid.h_min.is_finite() && grid.h_max.is_finite() && grid.h_min < grid.h_max) {
+        return Err(FitError(format!(
+            "invalid input range [{}, {}]",
+            grid.h_min, grid.h_max
+        )));
+    }
+    if let Some(p) = prior {
+        if p.len() != CELL_COUNT {
+            return Err(FitError(format!(
+                "the prior has {} weights, {CELL_COUNT} are needed",
+                p.len()
+            )));
+        }
+    }
+    for (name, v) in [("smoothness", options.smoothness), ("ridge", options.ridge)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(FitError(format!(
+                "{name} must be a finite number >= 0, got {v}"
+            )));
+        }
+    }
+    match options.unexcited {
+        Unexcited::KeepPrior if prior.is_none() => {
+            return Err(FitError(
+                "unexcited cells `keep-prior` needs prior (base) weights".into(),
+            ))
+        }
+        Unexcited::Regularized if options.smoothness == 0.0 && options.ridge == 0.0 => {
+            return Err(FitError(
+                "unexcited cells `regularized` needs smoothness > 0 or ridge > 0 (otherwise their \
+                 masses are not determined)"
+                    .into(),
+            ))
+        }
+        _ => {}
+    }
+    // Output scale: the range of the selected outputs.
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for e in experiments {
+        for (t, &y) in e.output.iter().enumerate() {
+            if e.selected.get(t).copied().unwrap_or(false) {
+                lo = lo.min(y);
+                hi = hi.max(y);
+            }
+        }
+    }
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return Err(FitError(
+            "the selected rows have no output variation (or there are none): nothing to fit".into(),
+        ));
+    }
+    let scale = hi - lo;
+    let design = Design::build(grid, experiments, options.affine, scale, options.row_stride);
+    let unexcited = design.unexcited();
+    let n = design.unknowns;
+    let rows = design.rows as f64;
+
+    // Quadratic form H (row-major, n x n) and linear term g of J = zᵀ H z - 2 gᵀ z + const.
+    let mut h: Vec<f64> = design.ata.iter().map(|v| v / rows).collect();
+    let mut g: Vec<f64> = design.atb.iter().map(|v| v / rows).collect();
+    let rho_ref = 1.0 / (LEVELS * LEVELS) as f64;
+    let pairs = neighbour_pairs();
+    if options.smoothness > 0.0 {
+        let c = options.smoothness / (pairs.len() as f64 * rho_ref * rho_ref);
+        for &(a, b) in &pairs {
+            let (ia, ib) = (1.0 / cell_area(a), 1.0 / cell_area(b));
+            h[a * n + a] += c * ia * ia;
+            h[b * n + b] += c * ib * ib;
+            h[a * n + b] -= c * ia * ib;
+            h[b * n + a] -= c * ia * ib;
+        }
+    }
+    if options.ridge > 0.0 {
+        let c = options.ridge / (CELL_COUNT as f64 * rho_ref * rho_ref);
+        for k in 0..CELL_COUNT {
+            let ia = 1.0 / cell_area(k);
+            h[k * n + k] += c * ia * ia;
+            if let Some(p) = prior {
+                g[k] += c * ia * ia * p[k] / scale;
+            }
+        }
+    }
+
+    // clarabel: minimize ½ zᵀ P z + qᵀ z, P = 2H (upper triangle), q = -2g.
+    let mut colptr = Vec::with_capacity(n + 1);
+    let mut rowval = Vec::new();
+    let mut nzval = Vec::new();
+    colptr.push(0);
+    for c in 0..n {
+        for r in 0..=c {
+            let v = 2.0 * h[r * n + c];
+            if v != 0.0 {
+                rowval.push(r);
+                nzval.push(v);
+            }
+        }
+        colptr.push(rowval.len());
+    }
+    let p = CscMatrix::new(n, n, colptr, rowval, nzval);
+    let q: Vec<f64> = g.iter().map(|v| -2.0 * v).collect();
+
+    // Constraints: fixed cells (equalities, zero cone) first, then w >= 0 for the free cells.
+    let fixed: Vec<(usize, f64)> = match options.unexcited {
+        Unexcited::KeepPrior => unexcited
+            .iter()
+            .map(|&k| (k, prior.map_or(0.0, |p| p[k]) / scale))
+            .collect(),
+        Unexcited::Zero => unexcited.iter().map(|&k| (k, 0.0)).collect(),
+        Unexcited::Regularized => Vec::new(),
+    };
+    let is_fixed = {
+        let mut v = vec![false; CELL_COUNT];
+        for &(k, _) in &fixed {
+            v[k] = true;
+        }
+        v
+    };
+    let free: Vec<usize> = (0..CELL_COUNT).filter(|&k| !is_fixed[k]).collect();
+    let m = fixed.len() + free.len();
+    // One nonzero per constraint row; build column-wise.
+    let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(m); // (col, row, val)
+    let mut b = vec![0.0; m];
+    for (r, &(k, v)) in fixed.iter().enumerate() {
+        entries.push((k, r, 1.0));
+        b[r] = v;
+    }
+    for (r, &k) in free.iter().enumerate() {
+        entries.push((k, fixed.len() + r, -1.0));
+    }
+    entries.sort_by_key(|e| (e.0, e.1));
+    let mut a_colptr = vec![0usize; n + 1];
+    for e in &entries {
+        a_colptr[e.0 + 1] += 1;
+    }
+    for c in 0..n {
+        a_colptr[c + 1] += a_colptr[c];
+    }
+    let a = CscMatrix::new(
+        m,
+        n,
+        a_colptr,
+        entries.iter().map(|e| e.1).collect(),
+        entries.iter().map(|e| e.2).collect(),
+    );
+    let mut cones: Vec<SupportedConeT<f64>> = Vec::new();
+    if !fixed.is_empty() {
+        cones.push(ZeroConeT(fixed.len()));
+    }
+    if !free.is_empty() {
+        cones.push(NonnegativeConeT(free.len()));
+    }
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .max_iter(500)
+        .build()
+        .map_err(|e| FitError(format!("solver settings: {e:?}")))?;
+    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
+        .map_err(|e| FitError(format!("solver setup failed: {e:?}")))?;
+    solver.solve();
+    let status = solver.solution.status;
+    if !matches!(status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
+        return Err(FitError(format!(
+            "the QP solver did not converge: {status:?} after {} iterations",
+            solver.solution.iterations
+        )));
+    }
+    let z = solver.solution.x.clone();
+    // Residual from the normal equations: ‖Az - b‖² = zᵀAᵀAz - 2 zᵀAᵀb + bᵀb.
+    let mut quad = 0.0;
+    for r in 0..n {
+        let s: f64 = design.ata[r * n..(r + 1) * n]
+            .iter()
+            .zip(&z)
+            .map(|(a, b)| a * b)
+            .sum();
+        quad += z[r] * s;
+    }
+    let cross: f64 = (0..n).map(|r| z[r] * design.atb[r]).sum();
+    let sse = (quad - 2.0 * cross + design.btb).max(0.0);
+    let rms_residual = (sse / rows).sqrt() * scale;
+
+    // Back to output units; clip the solver's interior-point slack (|w̃| ~ 1e-10) at zero.
+    let mut weights: Vec<f64> = z[..CELL_COUNT]
+        .iter()
+        .map(|w| (w * scale).max(0.0))
+        .collect();
+    // Fixed cells get their exact value (not the solver's rescaled copy of it).
+    for &(k, _) in &fixed {
+        weights[k] = match options.unexcited {
+            Unexcited::KeepPrior => prior.map_or(0.0, |p| p[k]),
+            _ => 0.0,
+        };
+    }
+    let (offset, slope) = if options.affine {
+        let (c0, c1) = (z[CELL_COUNT] * scale, z[CELL_COUNT + 1] * scale);
+        let span = grid.h_max - grid.h_min;
+        // c0 + c1 ((u - h_min)/span - ½) = offset + slope u.
+        (c0 - c1 * (grid.h_min / span + 0.5), c1 / span)
+    } else {
+        (0.0, 0.0)
+    };
+    Ok(FitResult {
+        weights,
+        offset,
+        slope,
+        unexcited,
+        rows: design.rows,
+        strided_out: design.strided_out,
+        rms_residual,
+        output_scale: scale,
+        outside: design.outside,
+        solver: format!(
+            "clarabel {status:?} in {} iterations",
+            solver.solution.iterations
+        ),
+    })
+}

@@ -1,0 +1,284 @@
+//! A fitted generic Preisach model (`maglab preisach-fit` writes it as JSON, `preisach-predict`
+//! reads it), its prediction and the error metric.
+//!
+//! `output = Σ_k w_k (2 f_k - 1) + offset + slope · input` on the grid `[h_min, h_max]` with
+//! [`crate::LEVELS`] intervals; `f_k` from [`crate::cells`].
+
+use crate::design::{run_experiment, Grid};
+use crate::memory::InitialState;
+use crate::CELL_COUNT;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Identifies the file format.
+pub const FORMAT: &str = "maglab-preisach-model";
+
+/// A generic Preisach model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PreisachModel {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Name of the input column it was fitted on.
+    pub input_column: String,
+    /// Name of the output column it was fitted on.
+    pub output_column: String,
+    /// Grid levels (always [`crate::LEVELS`]).
+    pub levels: usize,
+    /// Bottom of the input range.
+    pub h_min: f64,
+    /// Top of the input range.
+    pub h_max: f64,
+    /// Cell masses (output units), alpha-major.
+    pub weights: Vec<f64>,
+    /// Affine offset (output units).
+    pub offset: f64,
+    /// Affine slope (output units per input unit).
+    pub slope: f64,
+    /// Initial memory assumed for each experiment.
+    pub initial_state: InitialState,
+    /// How it was fitted (data, options, residuals, unexcited cells).
+    pub provenance: serde_json::Value,
+}
+
+impl PreisachModel {
+    /// The grid.
+    pub fn grid(&self) -> Grid {
+        Grid {
+            h_min: self.h_min,
+            h_max: self.h_max,
+        }
+    }
+
+    /// Predicts the output for an input sequence from `initial`.
+    pub fn predict(&self, input: &[f64], initial: InitialState) -> Vec<f64> {
+        let mut out = Vec::with_capacity(input.len());
+        run_experiment(&self.grid(), input, initial, |t, _, f| {
+            out.push(crate::cells::output(f, &self.weights) + self.offset + self.slope * input[t]);
+        });
+        out
+    }
+
+    /// A model of a field → magnetization operator with given masses and no affine part (used to
+    /// simulate a parameter file's static model).
+    pub fn from_weights(grid: Grid, weights: &[f64], initial_state: InitialState) -> Self {
+        PreisachModel {
+            format: FORMAT.into(),
+            input_column: "h_a_per_m".into(),
+            output_column: "m_a_per_m".into(),
+            levels: crate::LEVELS,
+            h_min: grid.h_min,
+            h_max: grid.h_max,
+            weights: weights.to_vec(),
+            offset: 0.0,
+            slope: 0.0,
+            initial_state,
+            provenance: serde_json::Value::Null,
+        }
+    }
+
+    /// Pretty JSON with a final newline.
+    pub fn to_json_pretty(&self) -> String {
+        let mut text = serde_json::to_string_pretty(self).unwrap_or_default();
+        text.push('\n');
+        text
+    }
+
+    /// Checks the fields a prediction relies on; `name` is used in messages.
+    pub fn validate(&self, name: &str) -> Result<(), String> {
+        if self.format != FORMAT {
+            return Err(format!(
+                "{name}: field `format`: expected `{FORMAT}`, got `{}`",
+                self.format
+            ));
+        }
+        if self.levels != crate::LEVELS {
+            return Err(format!(
+                "{name}: field `levels`: expected {}, got {}",
+                crate::LEVELS,
+                self.levels
+            ));
+        }
+        if !(self.h_min.is_finite() && self.h_max.is_finite() && self.h_min < self.h_max) {
+            return Err(format!(
+                "{name}: fields `h_min`/`h_max`: need finite h_min < h_max, got [{}, {}]",
+                self.h_min, self.h_max
+            ));
+        }
+        if self.weights.len() != CELL_COUNT {
+            return Err(format!(
+                "{name}: field `weights`: {CELL_COUNT} masses needed, got {}",
+                self.weights.len()
+            ));
+        }
+        for (k, w) in self.weights.iter().enumerate() {
+            if !(w.is_finite() && *w >= 0.0) {
+                return Err(format!(
+                    "{name}: field `weights[{k}]`: a mass must be finite and >= 0, got {w}"
+                ));
+            }
+        }
+        for (field, v) in [("offset", self.offset), ("slope", self.slope)] {
+            if !v.is_finite() {
+                return Err(format!("{name}: field `{field}`: not finite ({v})"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads and validates a model file.
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let name = path.display().to_string();
+        let text =
+            std::fs::read_to_string(path).map_err(|e| format!("{name}: cannot read: {e}"))?;
+        let model: Self = serde_json::from_str(&text).map_err(|e| format!("{name}: {e}"))?;
+        model.validate(&name)?;
+        Ok(model)
+    }
+}
+
+/// Normalized RMS error: `RMS(predicted - measured) / (max - min of measured)` over the rows with
+/// `selected[t]` (all rows when `selected` is `None`). `None` if no row or no output range.
+pub fn nrmse(predicted: &[f64], measured: &[f64], selected: Option<&[bool]>) -> Option<f64> {
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for (t, (p, m)) in predicted.iter().zip(measured).enumerate() {
+        if selected.is_some_and(|s| !s.get(t).copied().unwrap_or(false)) {
+            continue;
+        }
+        sum += (p - m) * (p - m);
+        count += 1;
+        lo = lo.min(*m);
+        hi = hi.max(*m);
+    }
+    if count == 0 || hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    Some((sum / count as f64).sqrt() / (hi - lo))
+}
+
+/// Margin added on each side of the data's input range for a generic fit (fraction of the
+/// range): the extreme samples then lie inside the top and bottom intervals, not on the edge.
+pub const DEFAULT_RANGE_MARGIN: f64 = 0.02;
+
+/// Fits a generic model to the selected rows of `table` (every experiment starts from
+/// `initial`). The grid is `range` if given, else the input range of the whole table (all rows,
+/// selected or not, so that prediction on the other rows stays inside the grid) widened by
+/// `margin` on each side.
+pub fn fit_table(
+    table: &crate::columns::Table,
+    spec: &crate::columns::ColumnSpec,
+    range: Option<(f64, f64)>,
+    margin: f64,
+    initial: InitialState,
+    options: &crate::fit::FitOptions,
+) -> Result<(PreisachModel, crate::fit::FitResult), crate::fit::FitError> {
+    let grid = match range {
+        Some((lo, hi)) => Grid {
+            h_min: lo,
+            h_max: hi,
+        },
+        None => {
+            let (lo, hi) = table
+                .series
+                .iter()
+                .flat_map(|s| s.input.iter())
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
+                    (a.min(u), b.max(u))
+                });
+            if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+                return Err(crate::fit::FitError(format!(
+                    "{}: column `{}` has no variation: no hysteresis to fit",
+                    table.path.display(),
+                    spec.input
+                )));
+            }
+            Grid::around(lo, hi, margin)
+        }
+    };
+    let experiments: Vec<crate::design::Experiment<'_>> = table
+        .series
+        .iter()
+        .map(|s| crate::design::Experiment {
+            label: &s.label,
+            input: &s.input,
+            output: &s.output,
+            selected: &s.selected,
+            initial,
+        })
+        .collect();
+    let result = crate::fit::fit(&grid, &experiments, None, options)?;
+    let provenance = serde_json::json!({
+        "source": "maglab preisach-fit",
+        "file": table.path.display().to_string(),
+        "experiments": table.series.iter().map(|s| serde_json::json!({
+            "label": s.label, "rows": s.input.len(), "fit_rows": s.selected_count()
+        })).collect::<Vec<_>>(),
+        "row_filter": spec.filter.describe(),
+        "group_column": spec.group,
+        "range_margin": if range.is_some() { None } else { Some(margin) },
+        "options": {
+            "smoothness": options.smoothness,
+            "ridge": options.ridge,
+            "affine": options.affine,
+            "unexcited": options.unexcited.name(),
+            "row_stride": options.row_stride,
+        },
+        "fit": {
+            "rows": result.rows,
+            "selected_rows_left_out_by_stride": result.strided_out,
+            "rms_residual": result.rms_residual,
+            "output_range": result.output_scale,
+            "solver": result.solver,
+        },
+        "unexcited_cells": {
+            "count": result.unexcited.len(),
+            "treatment": options.unexcited.name(),
+            "cells_i_j": result.unexcited.iter().map(|&k| {
+                let (i, j) = crate::cell_of_index(k); [i, j]
+            }).collect::<Vec<_>>(),
+        },
+    });
+    let model = PreisachModel {
+        format: FORMAT.into(),
+        input_column: spec.input.clone(),
+        output_column: spec.output.clone(),
+        levels: crate::LEVELS,
+        h_min: grid.h_min,
+        h_max: grid.h_max,
+        weights: result.weights.clone(),
+        offset: result.offset,
+        slope: result.slope,
+        initial_state: initial,
+        provenance,
+    };
+    Ok((model, result))
+}
+
+/// Predictions of `model` for every experiment of `table` (from the model's initial state) and
+/// the NRMSE over the selected rows of all experiments together (range = measured range of those
+/// rows).
+pub fn predict_table(
+    model: &PreisachModel,
+    table: &crate::columns::Table,
+) -> (Vec<Vec<f64>>, Option<f64>) {
+    let predictions: Vec<Vec<f64>> = table
+        .series
+        .iter()
+        .map(|s| model.predict(&s.input, model.initial_state))
+        .collect();
+    let mut pred = Vec::new();
+    let mut meas = Vec::new();
+    for (s, p) in table.series.iter().zip(&predictions) {
+        for ((&sel, &pt), &mt) in s.selected.iter().zip(p).zip(&s.output) {
+            if sel {
+                pred.push(pt);
+                meas.push(mt);
+            }
+        }
+    }
+    let score = nrmse(&pred, &meas, None);
+    (predictions, score)
+}

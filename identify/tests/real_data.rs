@@ -1,0 +1,124 @@
+//! Real measured hysteresis (not produced by any model here): fit on part of the data, predict
+//! the rest. Data: `../shared/data/real/` beside the repository (README there), or the folder in
+//! `MAGLAB_REAL_DATA`.
+//!
+//! Bounds: the computation is deterministic (fixed data, fixed options, the QP solved to 1e-8), so
+//! the asserted bounds are the measured NRMSE (printed) plus a margin of about 10 % relative, which
+//! covers floating-point and solver-tolerance differences across platforms (orders of magnitude
+//! smaller) — a regression that worsens the fit by more than that fails the test.
+
+use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter};
+use maglab_identify::fit::{FitOptions, Unexcited};
+use maglab_identify::memory::InitialState;
+use maglab_identify::model::{fit_table, predict_table, DEFAULT_RANGE_MARGIN};
+use std::path::PathBuf;
+
+fn data_dir() -> PathBuf {
+    let dir = std::env::var_os("MAGLAB_REAL_DATA").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real"),
+        PathBuf::from,
+    );
+    assert!(
+        dir.join("README.md").is_file(),
+        "real data not found at {}: clone the `shared` folder beside the repository \
+         (../shared/data/real from the repo root) or set MAGLAB_REAL_DATA",
+        dir.display()
+    );
+    dir
+}
+
+const OPTIONS: FitOptions = FitOptions {
+    smoothness: 1e-6,
+    ridge: 0.0,
+    affine: true,
+    unexcited: Unexcited::Regularized,
+    row_stride: 1,
+};
+
+#[test]
+fn bh_loops_fit_two_amplitudes_predict_the_others() {
+    // (file, asserted bound on the prediction NRMSE of loops 0 and 2)
+    for (file, bound) in [("mnzn-ferrite.csv", 0.023), ("mnzn-hp-ferrite.csv", 0.039)] {
+        let path = data_dir().join("bh-loops").join(file);
+        let spec = ColumnSpec {
+            input: "h_a_per_m".into(),
+            output: "b_t".into(),
+            group: Some("loop".into()),
+            filter: RowFilter::parse("loop=1,3").unwrap(),
+        };
+        let table = read_columns(&path, &spec).unwrap();
+        assert_eq!(table.series.len(), 4);
+        // Each loop is one period of a periodic steady state (centred symmetric loops).
+        let (model, result) = fit_table(
+            &table,
+            &spec,
+            None,
+            DEFAULT_RANGE_MARGIN,
+            InitialState::Periodic,
+            &OPTIONS,
+        )
+        .unwrap();
+        let (_, fit_score) = predict_table(&model, &table);
+        let held = ColumnSpec {
+            filter: RowFilter::parse("loop=0,2").unwrap(),
+            ..spec.clone()
+        };
+        let (_, score) = predict_table(&model, &read_columns(&path, &held).unwrap());
+        let (fit_score, score) = (fit_score.unwrap(), score.unwrap());
+        println!(
+            "{file}: fit on loops 1,3 NRMSE {:.3} %, predict loops 0,2 NRMSE {:.3} % (bound {:.1} %), unexcited {}",
+            100.0 * fit_score,
+            100.0 * score,
+            100.0 * bound,
+            result.unexcited.len()
+        );
+        assert!(score <= bound, "{file}: {score} > {bound}");
+        assert!(
+            fit_score <= score,
+            "{file}: the fit rows must fit better than held-out rows"
+        );
+    }
+}
+
+#[test]
+fn piezo_fit_early_cycles_predict_later_ones() {
+    let path = data_dir().join("piezo-1hz/piezo-stack-150v-1hz.csv");
+    // 3 s at 0 V, then the sine: fit on t < 6 s (the switch-on transient and ~2.5 cycles), predict
+    // t >= 6 s, the memory running from t = 0 (demagnetized at 0 V) through all samples.
+    let spec = ColumnSpec {
+        input: "voltage_v".into(),
+        output: "displacement_um".into(),
+        group: None,
+        filter: RowFilter::parse("t_s=0..6").unwrap(),
+    };
+    let table = read_columns(&path, &spec).unwrap();
+    // Every 10th row in the regression (3000 rows; 5 kHz samples a 1 Hz loop 5000 times a cycle).
+    let options = FitOptions {
+        row_stride: 10,
+        ..OPTIONS
+    };
+    let (model, result) = fit_table(
+        &table,
+        &spec,
+        None,
+        DEFAULT_RANGE_MARGIN,
+        InitialState::Demagnetized,
+        &options,
+    )
+    .unwrap();
+    let (_, fit_score) = predict_table(&model, &table);
+    let later = ColumnSpec {
+        filter: RowFilter::parse("t_s=6..11").unwrap(),
+        ..spec.clone()
+    };
+    let (_, score) = predict_table(&model, &read_columns(&path, &later).unwrap());
+    let (fit_score, score) = (fit_score.unwrap(), score.unwrap());
+    println!(
+        "piezo: fit t<6 s NRMSE {:.3} % ({} rows), predict t>=6 s NRMSE {:.3} %",
+        100.0 * fit_score,
+        result.rows,
+        100.0 * score
+    );
+    assert!(score <= 0.002, "piezo prediction NRMSE {score} > 0.2 %");
+    assert!(fit_score <= 0.0032, "piezo fit NRMSE {fit_score} > 0.32 %");
+}

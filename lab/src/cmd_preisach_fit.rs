@@ -1,0 +1,349 @@
+//! `maglab preisach-fit` and `maglab preisach-predict`: the Preisach identification of
+//! `maglab-identify` on any (input, output) hysteresis data in a CSV file.
+//!
+//! `preisach-fit` reads two columns (optionally split into experiments by a group column, and
+//! with a row filter choosing the rows that enter the fit — the memory always runs over every
+//! row), fits the 325 masses (>= 0, smoothness-regularized) and optionally an affine part, and
+//! writes the model JSON, the weight heat map and measured-vs-fitted loops. The input range is
+//! the data's (all rows) widened by a margin, unless `--levels-range` gives it.
+//!
+//! `preisach-predict` runs a model on a file, prints the NRMSE over the scored rows (RMS error
+//! divided by the measured range of those rows), writes the predicted CSV and the loop plot.
+
+use crate::plot::{Figure, Panel, Series, PALETTE};
+use crate::plot_preisach::WeightMap;
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Parser;
+use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter, Table};
+use maglab_identify::fit::{FitOptions, Unexcited};
+use maglab_identify::memory::InitialState;
+use maglab_identify::model::{fit_table, predict_table, PreisachModel, DEFAULT_RANGE_MARGIN};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `maglab preisach-fit`.
+#[derive(Debug, Parser)]
+pub struct FitArgs {
+    /// CSV file with a header.
+    file: PathBuf,
+    /// Input column (e.g. h_a_per_m, voltage_v).
+    #[arg(long)]
+    input_col: String,
+    /// Output column (e.g. b_t, displacement_um).
+    #[arg(long)]
+    output_col: String,
+    /// Column whose runs of equal values are separate experiments (own initial state).
+    #[arg(long)]
+    group_col: Option<String>,
+    /// Rows that enter the fit: COL=V1,V2,... or COL=LO..HI (LO inclusive, HI exclusive).
+    /// Default: all rows.
+    #[arg(long, value_name = "FILTER")]
+    fit_rows: Option<String>,
+    /// Input range of the grid, LO..HI. Default: the data's range plus --margin on each side.
+    #[arg(long, value_name = "LO..HI")]
+    levels_range: Option<String>,
+    /// Margin added to the data range on each side, fraction of the range.
+    #[arg(long, default_value_t = DEFAULT_RANGE_MARGIN)]
+    margin: f64,
+    /// Initial memory of each experiment: negative-saturation, positive-saturation,
+    /// demagnetized (around the first input), periodic (the experiment is one period of a
+    /// periodic steady state).
+    #[arg(long, default_value = "demagnetized")]
+    initial: String,
+    /// Smoothness weight λ_s (see maglab_identify::fit).
+    #[arg(long, default_value_t = 1e-6)]
+    smoothness: f64,
+    /// Ridge weight λ_r toward zero.
+    #[arg(long, default_value_t = 0.0)]
+    ridge: f64,
+    /// Fit an affine/reversible part offset + slope·input jointly.
+    #[arg(long)]
+    affine: bool,
+    /// Unexcited cells: regularized (set by smoothness/ridge) or zero.
+    #[arg(long, default_value = "regularized")]
+    unexcited: String,
+    /// Use every n-th fit row in the regression (the memory still sees every row).
+    #[arg(long, default_value_t = 1)]
+    row_stride: usize,
+    /// Output model file.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Directory for weights.png/.svg and fit-loops.png/.svg.
+    #[arg(long, default_value = "out")]
+    plot_dir: PathBuf,
+}
+
+/// Arguments of `maglab preisach-predict`.
+#[derive(Debug, Parser)]
+pub struct PredictArgs {
+    /// Model file written by `maglab preisach-fit`.
+    model: PathBuf,
+    /// CSV file with a header.
+    file: PathBuf,
+    /// Input column (default: the model's).
+    #[arg(long)]
+    input_col: Option<String>,
+    /// Output column (default: the model's).
+    #[arg(long)]
+    output_col: Option<String>,
+    /// Group column (runs of equal values are separate experiments).
+    #[arg(long)]
+    group_col: Option<String>,
+    /// Rows that are scored: COL=V1,V2,... or COL=LO..HI. Default: all rows.
+    #[arg(long, value_name = "FILTER")]
+    score_rows: Option<String>,
+    /// Predicted CSV (group, line, input, measured, predicted, scored).
+    #[arg(short, long, default_value = "out/predicted.csv")]
+    output: PathBuf,
+    /// Path stem of the loop plot.
+    #[arg(long, default_value = "out/predicted-loops")]
+    plot: PathBuf,
+}
+
+fn filter(text: Option<&str>) -> Result<RowFilter> {
+    text.map_or(Ok(RowFilter::All), |t| {
+        RowFilter::parse(t).map_err(|e| anyhow!(e))
+    })
+}
+
+/// Runs `preisach-fit`.
+pub fn run_fit(args: &FitArgs) -> Result<()> {
+    let spec = ColumnSpec {
+        input: args.input_col.clone(),
+        output: args.output_col.clone(),
+        group: args.group_col.clone(),
+        filter: filter(args.fit_rows.as_deref())?,
+    };
+    let table = read_columns(&args.file, &spec)?;
+    let range = match &args.levels_range {
+        None => None,
+        Some(text) => {
+            let (lo, hi) = text
+                .split_once("..")
+                .ok_or_else(|| anyhow!("--levels-range `{text}`: expected LO..HI"))?;
+            let lo: f64 = lo
+                .trim()
+                .parse()
+                .with_context(|| format!("--levels-range `{text}`"))?;
+            let hi: f64 = hi
+                .trim()
+                .parse()
+                .with_context(|| format!("--levels-range `{text}`"))?;
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                bail!("--levels-range `{text}`: need finite LO < HI");
+            }
+            Some((lo, hi))
+        }
+    };
+    let options = FitOptions {
+        smoothness: args.smoothness,
+        ridge: args.ridge,
+        affine: args.affine,
+        unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
+        row_stride: args.row_stride,
+    };
+    let initial = InitialState::parse(&args.initial).map_err(|e| anyhow!(e))?;
+    let (model, result) = fit_table(&table, &spec, range, args.margin, initial, &options)?;
+    let json = model.to_json_pretty();
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
+    }
+    std::fs::write(&args.output, json)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let (predictions, score) = predict_table(&model, &table);
+    println!(
+        "file {}: {} experiments, {} rows, fit rows ({}): {}",
+        table.path.display(),
+        table.series.len(),
+        table.rows(),
+        spec.filter.describe(),
+        table.selected_rows()
+    );
+    println!(
+        "grid [{:.6e}, {:.6e}] ({} levels), initial state {}",
+        model.h_min,
+        model.h_max,
+        maglab_identify::LEVELS,
+        initial.name()
+    );
+    println!(
+        "regression rows {} (left out by --row-stride: {}), {}",
+        result.rows, result.strided_out, result.solver
+    );
+    println!(
+        "RMS residual {:.6e}, output range {:.6e}; NRMSE on the fit rows {}",
+        result.rms_residual,
+        result.output_scale,
+        score.map_or("n/a".into(), |s| format!("{:.4} %", 100.0 * s))
+    );
+    if options.affine {
+        println!(
+            "affine part: offset {:.6e}, slope {:.6e} per input unit",
+            model.offset, model.slope
+        );
+    }
+    println!(
+        "unexcited cells: {} (treatment: {}){}",
+        result.unexcited.len(),
+        options.unexcited.name(),
+        if result.unexcited.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ": {}",
+                result
+                    .unexcited
+                    .iter()
+                    .map(|&k| format!("{:?}", maglab_identify::cell_of_index(k)))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            )
+        }
+    );
+    for (label, n) in &result.outside {
+        if *n > 0 {
+            println!("{label}: {n} samples outside the grid (memory saturated there)");
+        }
+    }
+    println!("wrote {}", args.output.display());
+    let map = WeightMap {
+        title: format!("Preisach masses, {}", args.file.display()),
+        axis_label: args.input_col.clone(),
+        axis_scale: 1.0,
+        h_min: model.h_min,
+        h_max: model.h_max,
+        weights: &model.weights,
+        outlined: &result.unexcited,
+    };
+    for p in map.write(&args.plot_dir.join("weights"))? {
+        println!("wrote {}", p.display());
+    }
+    for p in loops_figure(&table, &predictions, &spec, "fitted")?
+        .write(&args.plot_dir.join("fit-loops"))?
+    {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+fn loops_figure(
+    table: &Table,
+    predictions: &[Vec<f64>],
+    spec: &ColumnSpec,
+    what: &str,
+) -> Result<Figure> {
+    let mut panel = Panel::new(
+        &format!("measured (thin) vs {what} (thick), selected rows"),
+        &spec.input,
+        &spec.output,
+    );
+    for (k, (s, p)) in table.series.iter().zip(predictions).enumerate() {
+        let colour = PALETTE[k % PALETTE.len()];
+        let pick = |v: &[f64]| -> Vec<(f64, f64)> {
+            (0..s.input.len())
+                .filter(|&t| s.selected[t])
+                .map(|t| (s.input[t], v[t]))
+                .collect()
+        };
+        let measured = pick(&s.output);
+        if measured.is_empty() {
+            continue;
+        }
+        panel.series.push(Series {
+            label: Some(format!("{} measured", s.label)),
+            points: measured,
+            color: colour,
+            width: 1,
+        });
+        panel.series.push(Series {
+            label: Some(format!("{} {what}", s.label)),
+            points: pick(p),
+            color: colour,
+            width: 3,
+        });
+    }
+    Ok(Figure {
+        panels: vec![panel],
+        rows: 1,
+        cols: 1,
+        size_px: (1000, 800),
+    })
+}
+
+/// Runs `preisach-predict`.
+pub fn run_predict(args: &PredictArgs) -> Result<()> {
+    let model = PreisachModel::load(&args.model).map_err(|e| anyhow!(e))?;
+    let spec = ColumnSpec {
+        input: args
+            .input_col
+            .clone()
+            .unwrap_or_else(|| model.input_column.clone()),
+        output: args
+            .output_col
+            .clone()
+            .unwrap_or_else(|| model.output_column.clone()),
+        group: args.group_col.clone(),
+        filter: filter(args.score_rows.as_deref())?,
+    };
+    let table = read_columns(&args.file, &spec)?;
+    let (predictions, score) = predict_table(&model, &table);
+    let outside: usize = table
+        .series
+        .iter()
+        .flat_map(|s| s.input.iter())
+        .filter(|&&u| u < model.h_min || u > model.h_max)
+        .count();
+    println!(
+        "model {} on {}: {} experiments, {} rows, scored rows ({}): {}",
+        args.model.display(),
+        table.path.display(),
+        table.series.len(),
+        table.rows(),
+        spec.filter.describe(),
+        table.selected_rows()
+    );
+    if outside > 0 {
+        println!(
+            "{outside} samples lie outside the model's input range [{:.6e}, {:.6e}] (memory saturated there)",
+            model.h_min, model.h_max
+        );
+    }
+    match score {
+        Some(s) => println!("NRMSE {:.4} % of the measured range", 100.0 * s),
+        None => bail!("no scored rows with an output range: nothing to compare"),
+    }
+    write_predicted(&args.output, &table, &predictions, &spec)?;
+    println!("wrote {}", args.output.display());
+    for p in loops_figure(&table, &predictions, &spec, "predicted")?.write(&args.plot)? {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+fn write_predicted(
+    path: &Path,
+    table: &Table,
+    predictions: &[Vec<f64>],
+    spec: &ColumnSpec,
+) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
+    }
+    let mut text = format!(
+        "experiment,line,{},{},predicted,scored\n",
+        spec.input, spec.output
+    );
+    for (s, p) in table.series.iter().zip(predictions) {
+        for (t, pt) in p.iter().enumerate() {
+            text.push_str(&format!(
+                "\"{}\",{},{:e},{:e},{:e},{}\n",
+                s.label.replace('"', "'"),
+                s.lines[t],
+                s.input[t],
+                s.output[t],
+                pt,
+                u8::from(s.selected[t])
+            ));
+        }
+    }
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}

@@ -1,0 +1,140 @@
+//! Loading actuator parameters for the host tools.
+//!
+//! Every `maglab` command that models the actuator takes `--params FILE`. Without it the command
+//! uses the parameters baked into this build of the core (`magctl::params::BAKED_PARAMETERS`,
+//! from `params/actuator.json` or `ACTUATOR_PARAMS` at build time), so the host tools and the
+//! firmware agree by default. A file is read and validated with `actuator_params` (errors name
+//! the file, the field and the reason) and converted to the core's f32 types, exactly as
+//! `build.rs` does for the firmware.
+
+use actuator_params::ActuatorParams;
+use anyhow::{anyhow, Context, Result};
+use magctl::params::{
+    Actuator, ActuatorParameters, Control, PreisachGrid, Trajectory, BAKED_PARAMETERS,
+    BAKED_PARAMETERS_PROVENANCE, BAKED_PARAMETERS_SOURCE,
+};
+use magctl::preisach::{PreisachMeasure, CELL_COUNT};
+use std::path::Path;
+
+/// Parameters in the core's f32 form, with where they came from.
+#[derive(Debug, Clone)]
+pub struct LoadedParams {
+    /// The parameters, as the core uses them.
+    pub params: ActuatorParameters,
+    /// A human-readable description of the origin (file path, or "baked into this build").
+    pub origin: String,
+    /// The file's `provenance.source`.
+    pub provenance: String,
+}
+
+impl LoadedParams {
+    /// The Preisach operator's coefficients for these parameters.
+    pub fn measure(&self) -> PreisachMeasure {
+        let p = &self.params.preisach;
+        PreisachMeasure::new(&p.weights_a_per_m, p.h_min_a_per_m, p.h_max_a_per_m)
+    }
+}
+
+/// The baked parameters, or the validated contents of `path`.
+pub fn load(path: Option<&Path>) -> Result<LoadedParams> {
+    match path {
+        None => Ok(LoadedParams {
+            params: BAKED_PARAMETERS,
+            origin: format!("baked into this build from {BAKED_PARAMETERS_SOURCE}"),
+            provenance: BAKED_PARAMETERS_PROVENANCE.to_string(),
+        }),
+        Some(path) => {
+            let file = ActuatorParams::load(path).context("invalid parameter file")?;
+            Ok(LoadedParams {
+                params: to_core(&file).with_context(|| format!("converting {}", path.display()))?,
+                origin: path.display().to_string(),
+                provenance: file.provenance.source.clone(),
+            })
+        }
+    }
+}
+
+/// Converts a validated parameter file to the core's f32 types (the same narrowing `build.rs`
+/// applies when it bakes a file).
+pub fn to_core(file: &ActuatorParams) -> Result<ActuatorParameters> {
+    let a = &file.actuator;
+    let p = &file.preisach;
+    let c = &file.control;
+    let t = &file.trajectory;
+    if p.weights_a_per_m.len() != CELL_COUNT {
+        return Err(anyhow!(
+            "field `preisach.weights_a_per_m`: the core needs {CELL_COUNT} weights, the file has {}",
+            p.weights_a_per_m.len()
+        ));
+    }
+    let mut weights_a_per_m = [0.0f32; CELL_COUNT];
+    for (dst, &src) in weights_a_per_m.iter_mut().zip(&p.weights_a_per_m) {
+        *dst = src as f32;
+    }
+    Ok(ActuatorParameters {
+        actuator: Actuator {
+            coil_turns: a.coil_turns as f32,
+            rod_area_m2: a.rod_area_m2 as f32,
+            rod_length_m: a.rod_length_m as f32,
+            coil_factor_per_m: a.coil_factor_per_m as f32,
+            saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m as f32,
+            saturation_magnetostriction: a.saturation_magnetostriction as f32,
+            resonance_hz: a.resonance_hz as f32,
+            eddy_resistance_ohm: a.eddy_resistance_ohm as f32,
+            damping_ratio: a.damping_ratio as f32,
+        },
+        preisach: PreisachGrid {
+            h_min_a_per_m: p.h_min_a_per_m as f32,
+            h_max_a_per_m: p.h_max_a_per_m as f32,
+            weights_a_per_m,
+        },
+        control: Control {
+            sample_rate_hz: c.sample_rate_hz as f32,
+            current_limit_a: c.current_limit_a as f32,
+            current_slew_limit_a_per_s: c.current_slew_limit_a_per_s as f32,
+        },
+        trajectory: Trajectory {
+            van_der_pol_mu: t.van_der_pol_mu as f32,
+            frequency_scale_hz: t.frequency_scale_hz as f32,
+            displacement_min_m: t.displacement_min_m as f32,
+            displacement_max_m: t.displacement_max_m as f32,
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shipped default file, converted here, must equal what `build.rs` baked from it (both
+    /// narrow the same f64 values to f32). Holds when the build used the default file.
+    #[test]
+    fn default_file_converts_to_the_baked_constants() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let default_file = root.join("params").join("actuator.json");
+        if !BAKED_PARAMETERS_SOURCE.ends_with("params/actuator.json") {
+            // Built with ACTUATOR_PARAMS pointing elsewhere: nothing to compare with.
+            return;
+        }
+        let loaded = load(Some(&default_file)).expect("the shipped default file is valid");
+        assert_eq!(loaded.params, BAKED_PARAMETERS);
+    }
+
+    #[test]
+    fn invalid_file_error_names_the_field() {
+        let mut file = actuator_params::paper_defaults();
+        file.actuator.eddy_resistance_ohm = -1.0;
+        let dir = std::env::temp_dir().join(format!("maglab-params-io-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bad.json");
+        std::fs::write(&path, file.to_json_pretty()).unwrap();
+        let err = load(Some(&path)).unwrap_err();
+        let message = format!("{err:#}");
+        std::fs::remove_dir_all(&dir).ok();
+        assert!(
+            message.contains("actuator.eddy_resistance_ohm"),
+            "message: {message}"
+        );
+        assert!(err.chain().any(|c| c.is::<actuator_params::ParamsError>()));
+    }
+}

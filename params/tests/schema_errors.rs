@@ -1,0 +1,112 @@
+//! Every way of breaking the parameter file is rejected by `ActuatorParams::parse` with an error
+//! that names the field (and the source), one test per case. `build_rejects_broken_files.rs`
+//! checks the same cases through a real `cargo check` of the core.
+
+mod common;
+
+use actuator_params::ActuatorParams;
+use common::{cases, valid_text};
+
+fn check(name: &str) {
+    let case = cases()
+        .into_iter()
+        .find(|c| c.name == name)
+        .unwrap_or_else(|| panic!("no case {name}"));
+    let err = ActuatorParams::parse(&case.text, "broken.json")
+        .expect_err("a broken document must be rejected");
+    assert_eq!(err.source_name, "broken.json");
+    assert_eq!(err.field, case.field, "{name}: {err}");
+    assert!(
+        err.reason.contains(case.reason_contains),
+        "{name}: reason {:?} lacks {:?}",
+        err.reason,
+        case.reason_contains
+    );
+    // The rendered message (what build.rs prints) names file and field.
+    let shown = err.to_string();
+    assert!(
+        shown.starts_with(&format!("broken.json: field `{}`: ", case.field)),
+        "{shown}"
+    );
+}
+
+#[test]
+fn the_valid_default_parses() {
+    ActuatorParams::parse(&valid_text(), "default").expect("the default document is valid");
+}
+
+#[test]
+fn every_case_is_tested_here() {
+    let names: Vec<&str> = cases().iter().map(|c| c.name).collect();
+    assert_eq!(
+        names,
+        [
+            "missing_field",
+            "wrong_type",
+            "infinite_number",
+            "nan_literal",
+            "beyond_f32",
+            "negative_weight",
+            "negative_resistance",
+            "wrong_number_of_weights",
+            "h_min_not_below_h_max",
+            "levels_inconsistent_with_weights",
+            "weights_for_another_level_count",
+        ]
+    );
+}
+
+#[test]
+fn missing_field() {
+    check("missing_field");
+}
+
+#[test]
+fn wrong_type() {
+    check("wrong_type");
+}
+
+#[test]
+fn infinite_number() {
+    check("infinite_number");
+}
+
+#[test]
+fn nan_literal() {
+    check("nan_literal");
+}
+
+#[test]
+fn beyond_f32() {
+    check("beyond_f32");
+}
+
+#[test]
+fn negative_weight() {
+    check("negative_weight");
+}
+
+#[test]
+fn negative_resistance() {
+    check("negative_resistance");
+}
+
+#[test]
+fn wrong_number_of_weights() {
+    check("wrong_number_of_weights");
+}
+
+#[test]
+fn h_min_not_below_h_max() {
+    check("h_min_not_below_h_max");
+}
+
+#[test]
+fn levels_inconsistent_with_weights() {
+    check("levels_inconsistent_with_weights");
+}
+
+#[test]
+fn weights_for_another_level_count() {
+    check("weights_for_another_level_count");
+}

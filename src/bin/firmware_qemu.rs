@@ -1,0 +1,395 @@
+//! Control firmware for QEMU's `mps2-an386` (Cortex-M4F), run by `cargo xtask qemu`.
+//!
+//! The CMSDK TIMER0 interrupt runs one control step (Van der Pol trajectory → inverse → limiter →
+//! SPI DAC) and streams a record per interrupt to the host (semihosting file
+//! `qemu_capture.bin`, layout in `magctl::board::mps2_an386::capture`). Three phases run in one
+//! QEMU process, each from a fresh controller state:
+//!
+//! 1. dynamic inverse, fast exact Preisach inverse — one second of control time;
+//! 2. static inverse, fast exact Preisach inverse — one second;
+//! 3. dynamic inverse with the naive baseline (bisection over the 325-cell forward) —
+//!    [`NAIVE_TICKS`] interrupts (each costs ~10⁵ instructions; only its instruction count is
+//!    compared).
+//!
+//! # Timing under QEMU
+//!
+//! `cargo xtask qemu` runs QEMU with `-icount shift=10,sleep=off`: every instruction advances the
+//! virtual clock by 2¹⁰ ns, so the 25 MHz SysTick advances exactly 25.6 ticks per instruction
+//! (checked at start-up by timing blocks of 1024 and 2048 `nop`s, sent as a phase-0 record) and
+//! the virtual CPU runs ~977 k instructions per virtual second. The control *math* runs at the
+//! JSON's sample rate (h = 1/10 kHz); the TIMER0 period is instead set to an instruction budget
+//! ([`FAST_BUDGET_INSTRUCTIONS`], [`NAIVE_BUDGET_INSTRUCTIONS`]) so that the handler fits in it;
+//! with `sleep=off` idle virtual time costs no host time. On the real board (firmware-nucleo) the
+//! timer runs at the true control rate.
+//!
+//! Exit status: 0 after the three phases with no dropped record, no overrun and no fault;
+//! 3 if a check failed; 101 panic, 102 HardFault, 103 unexpected interrupt (see
+//! `board::mps2_an386::panic`); 4-6 start-up failures. Fault injection for the tests:
+//! `-semihosting-config ...,arg=inject=panic` or `arg=inject=hardfault`.
+#![cfg_attr(target_os = "none", no_std)]
+#![cfg_attr(target_os = "none", no_main)]
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!(
+        "firmware-qemu is Cortex-M firmware: build it with `--target thumbv7em-none-eabihf \
+         --features board-mps2-an386`, or run `cargo xtask qemu`"
+    );
+    std::process::exit(2);
+}
+
+#[cfg(target_os = "none")]
+pub use firmware::*;
+
+#[cfg(target_os = "none")]
+mod firmware {
+    use core::ptr::addr_of_mut;
+    use core::sync::atomic::{AtomicBool, Ordering};
+    use cortex_m::interrupt::InterruptNumber;
+    use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
+    use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
+    use magctl::board::mps2_an386::capture::{encode, Record, Ring};
+    use magctl::board::mps2_an386::fpgaio::MiscPin;
+    use magctl::board::mps2_an386::pl022::Pl022;
+    use magctl::board::mps2_an386::semihosting::{self, HostFile};
+    use magctl::board::mps2_an386::timer::CmsdkTimer;
+    use magctl::board::mps2_an386::{FPGAIO_BASE, SPI0_BASE, TIMER0_BASE, TIMER0_IRQ, TIMER1_BASE};
+    use magctl::inverse::{ControlLoop, InverseKind, LoopState, NaiveLoopState};
+    use magctl::output::{CurrentOutput, DacScale, SpiDac};
+    use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
+
+    /// Preisach memory capacity (reversal points) of the controller.
+    const CAPACITY: usize = magctl::preisach::DEFAULT_CAPACITY;
+    /// Interrupts of the naive phase.
+    pub const NAIVE_TICKS: u32 = 1_000;
+    /// TIMER0 period in the fast phases, in instructions (≈ 5.5 × the 1,500-instruction goal).
+    pub const FAST_BUDGET_INSTRUCTIONS: u32 = 8_192;
+    /// TIMER0 period in the naive phase, in instructions.
+    pub const NAIVE_BUDGET_INSTRUCTIONS: u32 = 1 << 21;
+    /// SysTick ticks per instruction under `-icount shift=10`: 1024 ns × 25 MHz = 25.6 = 128/5.
+    const fn budget_ticks(instructions: u32) -> u32 {
+        instructions / 5 * 128
+    }
+
+    const PHASE_CALIBRATION: u8 = 0;
+    const PHASE_DYNAMIC: u8 = 1;
+    const PHASE_STATIC: u8 = 2;
+    const PHASE_NAIVE: u8 = 3;
+    const PHASE_DONE: u8 = 4;
+
+    #[derive(Clone, Copy)]
+    struct Timer0Irq;
+    // SAFETY: 8 is TIMER0's interrupt number on mps2-an386.
+    unsafe impl InterruptNumber for Timer0Irq {
+        fn number(self) -> u16 {
+            TIMER0_IRQ
+        }
+    }
+
+    type Dac = SpiDac<ExclusiveDevice<Pl022, MiscPin, NoDelay>>;
+
+    struct App {
+        control: ControlLoop<'static>,
+        phase: u8,
+        tick: u32,
+        phase_ticks: u32,
+        fast: LoopState<CAPACITY>,
+        naive: NaiveLoopState<CAPACITY>,
+        dac: Dac,
+        timer0: CmsdkTimer,
+        timer1: CmsdkTimer,
+        overruns: u32,
+        faults: u32,
+        min_ticks: [u32; 4],
+        max_ticks: [u32; 4],
+    }
+
+    static mut APP: Option<App> = None;
+    static RING: Ring = Ring::new();
+    static DONE: AtomicBool = AtomicBool::new(false);
+
+    /// The control interrupt (TIMER0, IRQ 8).
+    ///
+    /// **Deadline**: the next TIMER0 expiry, one period after this one (the control period on real
+    /// hardware; the instruction budget under QEMU, see the crate docs).
+    /// **Overrun**: detected at the end of the handler when TIMER0's interrupt status is already
+    /// set again (the timer expired while we were running); it is counted (the count goes into
+    /// every record and the exit status). The pending interrupt then runs immediately, i.e. late:
+    /// no step is skipped, the DAC update jitters by the overrun.
+    /// **Work**: SysTick and TIMER1 read at entry; one `ControlLoop` tick; one DAC frame; SysTick
+    /// and TIMER1 read again; one 40-byte record into the ring (the ring push, ~60 instructions of
+    /// test instrumentation, is after the second read and not counted). No allocation, no panic
+    /// path (proved at link time by the `panic-never` build).
+    ///
+    /// # Safety
+    /// Called only by the hardware through the vector table; it is the only code touching `APP`
+    /// once the timer runs (thread mode reads it again only after `DONE`).
+    #[unsafe(no_mangle)]
+    pub unsafe extern "C" fn TIMER0() {
+        let systick_entry = SYST::get_current();
+        let app = match unsafe { (*addr_of_mut!(APP)).as_mut() } {
+            Some(app) => app,
+            None => return,
+        };
+        let timer1_entry = app.timer1.value();
+        app.timer0.clear();
+        let out = match app.phase {
+            PHASE_DYNAMIC => app.control.tick(InverseKind::Dynamic, &mut app.fast),
+            PHASE_STATIC => app.control.tick(InverseKind::Static, &mut app.fast),
+            PHASE_NAIVE => app.control.tick_naive(InverseKind::Dynamic, &mut app.naive),
+            _ => {
+                app.timer0.stop();
+                return;
+            }
+        };
+        let code = match app.dac.write_current(out.current_a) {
+            Ok(code) => code,
+            Err(_) => DacScale::MIDSCALE,
+        };
+        #[cfg(feature = "panic-never-canary")]
+        {
+            // Negative control of the link-time proof: a bounds check the optimizer cannot remove.
+            let table = [0u8; 4];
+            app.faults += table[(app.tick % 5) as usize] as u32;
+        }
+        let systick_exit = SYST::get_current();
+        let timer1_exit = app.timer1.value();
+        if app.timer0.pending() {
+            app.overruns = app.overruns.saturating_add(1);
+        }
+        // SysTick is a 24-bit down counter; TIMER1 (32-bit, same clock) resolves the wraps.
+        let short = systick_entry.wrapping_sub(systick_exit) & 0x00FF_FFFF;
+        let coarse = timer1_entry.wrapping_sub(timer1_exit);
+        let wraps = coarse.wrapping_sub(short).wrapping_add(1 << 23) >> 24;
+        let ticks = short.wrapping_add(wraps << 24);
+        let slot = (app.phase & 3) as usize;
+        if let Some(m) = app.min_ticks.get_mut(slot) {
+            *m = (*m).min(ticks);
+        }
+        if let Some(m) = app.max_ticks.get_mut(slot) {
+            *m = (*m).max(ticks);
+        }
+        if out.flags.has(magctl::inverse::CommandFlags::FAULT) {
+            app.faults = app.faults.saturating_add(1);
+        }
+        let d = out.desired;
+        RING.push(&encode(
+            app.phase,
+            out.flags.0,
+            app.tick,
+            ticks,
+            [
+                out.current_a,
+                d.displacement_m,
+                d.velocity_m_per_s,
+                d.acceleration_m_per_s2,
+                out.h_a_per_m,
+                out.m_a_per_m,
+            ],
+            code,
+            app.overruns.min(u16::MAX as u32) as u16,
+        ));
+        app.tick += 1;
+        if app.tick >= app.phase_ticks {
+            next_phase(app);
+        }
+    }
+
+    fn next_phase(app: &mut App) {
+        app.tick = 0;
+        match app.phase {
+            PHASE_DYNAMIC => {
+                app.phase = PHASE_STATIC;
+                app.fast = app.control.init(InverseKind::Static);
+                app.timer0
+                    .start(budget_ticks(FAST_BUDGET_INSTRUCTIONS), true);
+            }
+            PHASE_STATIC => {
+                app.phase = PHASE_NAIVE;
+                app.phase_ticks = NAIVE_TICKS;
+                app.naive = app.control.init_naive(InverseKind::Dynamic);
+                app.timer0
+                    .start(budget_ticks(NAIVE_BUDGET_INSTRUCTIONS), true);
+            }
+            _ => {
+                app.phase = PHASE_DONE;
+                app.timer0.stop();
+                DONE.store(true, Ordering::Release);
+            }
+        }
+    }
+
+    /// SysTick ticks spent on `N` back-to-back `nop`s plus the two reads around them.
+    #[inline(always)]
+    fn time_nops_1024() -> u32 {
+        let a = SYST::get_current();
+        unsafe { core::arch::asm!(".rept 1024", "nop", ".endr", options(nomem, nostack)) };
+        let b = SYST::get_current();
+        a.wrapping_sub(b) & 0x00FF_FFFF
+    }
+
+    #[inline(always)]
+    fn time_nops_2048() -> u32 {
+        let a = SYST::get_current();
+        unsafe { core::arch::asm!(".rept 2048", "nop", ".endr", options(nomem, nostack)) };
+        let b = SYST::get_current();
+        a.wrapping_sub(b) & 0x00FF_FFFF
+    }
+
+    fn inject_faults_from_command_line() {
+        let mut buf = [0u8; 128];
+        let n = semihosting::command_line(&mut buf);
+        let line = buf.get(..n).unwrap_or(&[]);
+        let has = |needle: &[u8]| line.windows(needle.len()).any(|w| w == needle);
+        if has(b"inject=hardfault") {
+            defmt::info!("fault injection: executing UDF (expect exit status 102)");
+            cortex_m::asm::udf();
+        }
+        #[cfg(not(feature = "panic-never"))]
+        if has(b"inject=panic") {
+            defmt::info!("fault injection: panicking (expect exit status 101)");
+            core::panic!("injected panic");
+        }
+    }
+
+    fn drain(file: HostFile, chunk: &mut [Record; 32]) -> usize {
+        let n = RING.pop_into(chunk);
+        for r in chunk.iter().take(n) {
+            if !file.write_all(r) {
+                semihosting::exit(6);
+            }
+        }
+        n
+    }
+
+    #[cortex_m_rt::entry]
+    fn main() -> ! {
+        let Some(mut cp) = cortex_m::Peripherals::take() else {
+            semihosting::exit(4)
+        };
+        cp.SYST.set_clock_source(SystClkSource::Core);
+        cp.SYST.set_reload(0x00FF_FFFF);
+        cp.SYST.clear_current();
+        cp.SYST.enable_counter();
+        defmt::info!(
+            "magctl firmware on mps2-an386: control rate {=f32} Hz",
+            BAKED_PARAMETERS.control.sample_rate_hz
+        );
+        inject_faults_from_command_line();
+
+        let Some(file) = semihosting::create(b"qemu_capture.bin\0") else {
+            defmt::error!("cannot open the capture file on the host");
+            semihosting::exit(6)
+        };
+        // Calibration: 1024 extra instructions between the two measurements.
+        let one = time_nops_1024();
+        let two = time_nops_2048();
+        let diff = two.wrapping_sub(one);
+        defmt::info!(
+            "calibration: 1024 nops = {=u32} SysTick ticks (expect 26214 = 1024 x 25.6)",
+            diff
+        );
+        let mut cal = encode(PHASE_CALIBRATION, 0, 1024, diff, [0.0; 6], 0, 0);
+        cal[4..8].copy_from_slice(&1024u32.to_le_bytes());
+        if !file.write_all(&cal) {
+            semihosting::exit(6);
+        }
+
+        let control = match ControlLoop::new(&BAKED_MEASURE, &BAKED_PARAMETERS) {
+            Ok(c) => c,
+            Err(_) => {
+                defmt::error!("invalid control settings in the baked parameters");
+                semihosting::exit(5)
+            }
+        };
+        let Some(scale) = DacScale::new(BAKED_PARAMETERS.control.current_limit_a) else {
+            semihosting::exit(5)
+        };
+        let spi = unsafe { Pl022::new(SPI0_BASE) };
+        let cs = unsafe { MiscPin::new(FPGAIO_BASE, 1) };
+        let Ok(device) = ExclusiveDevice::new_no_delay(spi, cs);
+        let fast_ticks = BAKED_PARAMETERS.control.sample_rate_hz as u32; // one second
+        let app = App {
+            control,
+            phase: PHASE_DYNAMIC,
+            tick: 0,
+            phase_ticks: fast_ticks,
+            fast: control.init(InverseKind::Dynamic),
+            naive: control.init_naive(InverseKind::Dynamic),
+            dac: SpiDac::new(device, scale),
+            timer0: unsafe { CmsdkTimer::new(TIMER0_BASE) },
+            timer1: unsafe { CmsdkTimer::new(TIMER1_BASE) },
+            overruns: 0,
+            faults: 0,
+            min_ticks: [u32::MAX; 4],
+            max_ticks: [0; 4],
+        };
+        defmt::info!(
+            "trajectory: Van der Pol mu {=f32}, {=f32} Hz scale, peak x {=f32}; {=u32} + {=u32} + {=u32} interrupts",
+            BAKED_PARAMETERS.trajectory.van_der_pol_mu,
+            BAKED_PARAMETERS.trajectory.frequency_scale_hz,
+            app.control.trajectory().peak_x(),
+            fast_ticks,
+            fast_ticks,
+            NAIVE_TICKS
+        );
+        unsafe {
+            let slot = &mut *addr_of_mut!(APP);
+            *slot = Some(app);
+            if let Some(app) = slot.as_mut() {
+                app.timer1.start(u32::MAX, false);
+                app.timer0
+                    .start(budget_ticks(FAST_BUDGET_INSTRUCTIONS), true);
+            }
+            NVIC::unmask(Timer0Irq);
+        }
+
+        let mut chunk = [[0u8; 40]; 32];
+        loop {
+            if drain(file, &mut chunk) > 0 {
+                continue;
+            }
+            if DONE.load(Ordering::Acquire) && RING.is_empty() {
+                break;
+            }
+            cortex_m::interrupt::free(|_| {
+                if RING.is_empty() && !DONE.load(Ordering::Acquire) {
+                    cortex_m::asm::wfi();
+                }
+            });
+        }
+        NVIC::mask(Timer0Irq);
+        file.close();
+        let dropped = RING.dropped.load(Ordering::Relaxed);
+        let app = match unsafe { (*addr_of_mut!(APP)).as_ref() } {
+            Some(app) => app,
+            None => semihosting::exit(4),
+        };
+        let c = &app.fast.core.counters;
+        for (name, k) in [("dynamic", 1usize), ("static", 2), ("naive", 3)] {
+            let lo = app.min_ticks.get(k).copied().unwrap_or(0);
+            let hi = app.max_ticks.get(k).copied().unwrap_or(0);
+            defmt::info!(
+                "{=str}: SysTick ticks per interrupt min {=u32} max {=u32} (instructions ~ ticks / 25.6)",
+                name,
+                lo,
+                hi
+            );
+        }
+        defmt::info!(
+            "static phase counters: u clamped {=u32}, current limited {=u32}, slew limited {=u32}",
+            c.u_clamped,
+            c.current_limited,
+            c.slew_limited
+        );
+        defmt::info!(
+            "overruns {=u32}, dropped records {=u32}, faults {=u32}, log bytes dropped {=u32}",
+            app.overruns,
+            dropped,
+            app.faults,
+            magctl::board::mps2_an386::logger::DROPPED_BYTES.load(Ordering::Relaxed)
+        );
+        let ok = app.overruns == 0 && dropped == 0 && app.faults == 0;
+        semihosting::exit(if ok { 0 } else { 3 })
+    }
+}

@@ -1,0 +1,103 @@
+//! ARM PrimeCell PL022 SSP as an embedded-hal [`SpiBus`] (8-bit frames, Motorola SPI).
+//! Registers: CR0 +0x00, CR1 +0x04, DR +0x08, SR +0x0C (TNF bit 1, RNE bit 2, BSY bit 4),
+//! CPSR +0x10.
+
+use core::convert::Infallible;
+use core::ptr::{read_volatile, write_volatile};
+use embedded_hal::spi::{ErrorType, SpiBus};
+
+const CR0: usize = 0x00;
+const CR1: usize = 0x04;
+const DR: usize = 0x08;
+const SR: usize = 0x0C;
+const CPSR: usize = 0x10;
+const SR_TNF: u32 = 1 << 1;
+const SR_RNE: u32 = 1 << 2;
+const SR_BSY: u32 = 1 << 4;
+
+/// A PL022 in master mode.
+pub struct Pl022 {
+    base: usize,
+}
+
+impl Pl022 {
+    /// Configures the controller at `base`: 8-bit frames, SPI mode 1 (CPOL 0, CPHA 1), bit rate
+    /// `clock / (cpsdvsr · (1 + scr))` with CPSDVSR = 2, SCR = 0 (12.5 MHz at 25 MHz), enabled.
+    ///
+    /// # Safety
+    /// `base` must be a PL022's address and this must be its only owner.
+    pub unsafe fn new(base: usize) -> Self {
+        let s = Pl022 { base };
+        unsafe {
+            write_volatile(s.reg(CR1), 0);
+            write_volatile(s.reg(CPSR), 2);
+            // DSS = 7 (8 bits), FRF = 0 (Motorola), SPO = 0, SPH = 1, SCR = 0.
+            write_volatile(s.reg(CR0), 0x7 | (1 << 7));
+            write_volatile(s.reg(CR1), 1 << 1);
+        }
+        s
+    }
+
+    #[inline(always)]
+    fn reg(&self, offset: usize) -> *mut u32 {
+        (self.base + offset) as *mut u32
+    }
+
+    #[inline(always)]
+    fn sr(&self) -> u32 {
+        unsafe { read_volatile(self.reg(SR)) }
+    }
+
+    /// Exchanges one byte.
+    #[inline(always)]
+    fn exchange(&mut self, byte: u8) -> u8 {
+        while self.sr() & SR_TNF == 0 {}
+        unsafe { write_volatile(self.reg(DR), byte as u32) };
+        while self.sr() & SR_RNE == 0 {}
+        unsafe { read_volatile(self.reg(DR)) as u8 }
+    }
+}
+
+impl ErrorType for Pl022 {
+    type Error = Infallible;
+}
+
+impl SpiBus<u8> for Pl022 {
+    fn read(&mut self, words: &mut [u8]) -> Result<(), Infallible> {
+        for w in words.iter_mut() {
+            *w = self.exchange(0);
+        }
+        Ok(())
+    }
+
+    fn write(&mut self, words: &[u8]) -> Result<(), Infallible> {
+        for &w in words {
+            let _ = self.exchange(w);
+        }
+        Ok(())
+    }
+
+    fn transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), Infallible> {
+        let n = read.len().max(write.len());
+        for i in 0..n {
+            let out = write.get(i).copied().unwrap_or(0);
+            let inp = self.exchange(out);
+            if let Some(r) = read.get_mut(i) {
+                *r = inp;
+            }
+        }
+        Ok(())
+    }
+
+    fn transfer_in_place(&mut self, words: &mut [u8]) -> Result<(), Infallible> {
+        for w in words.iter_mut() {
+            *w = self.exchange(*w);
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<(), Infallible> {
+        while self.sr() & SR_BSY != 0 {}
+        Ok(())
+    }
+}

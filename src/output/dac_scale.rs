@@ -1,0 +1,77 @@
+//! Current (A) → 16-bit offset-binary DAC code, in fixed point.
+
+use fixed::types::I1F15;
+
+/// Full-scale current of the amplifier and the conversion to DAC codes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DacScale {
+    inv_full_scale_per_a: f32,
+}
+
+impl DacScale {
+    /// The code for 0 A.
+    pub const MIDSCALE: u16 = 0x8000;
+
+    /// Conversion for an amplifier with full scale `±full_scale_a` (finite, > 0; anything else
+    /// returns `None`).
+    pub fn new(full_scale_a: f32) -> Option<Self> {
+        if full_scale_a.is_finite() && full_scale_a > 0.0 {
+            Some(DacScale {
+                inv_full_scale_per_a: 1.0 / full_scale_a,
+            })
+        } else {
+            None
+        }
+    }
+
+    /// The code for `current_a`: normalized to `[-1, 1)`, saturated at the ends, rounded to the
+    /// nearest Q1.15 step (1 LSB = full scale / 32768), sign bit flipped for offset binary. NaN
+    /// maps to midscale (0 A) — the controller never produces one (its limiter holds the last
+    /// valid current), this only keeps the conversion total.
+    #[inline]
+    pub fn code(&self, current_a: f32) -> u16 {
+        let x = current_a * self.inv_full_scale_per_a;
+        // Clamp in f32 first so the conversion cannot overflow; `checked_from_num` is None only
+        // for NaN here.
+        let x = x.clamp(-1.0, 1.0);
+        match I1F15::checked_from_num(x) {
+            Some(q) => (q.to_bits() as u16) ^ 0x8000,
+            None if x >= 1.0 => u16::MAX,
+            None => Self::MIDSCALE,
+        }
+    }
+
+    /// The current a code stands for, A (inverse of [`DacScale::code`] up to 1/2 LSB).
+    pub fn current_a(&self, code: u16) -> f32 {
+        let q = I1F15::from_bits((code ^ 0x8000) as i16);
+        q.to_num::<f32>() / self.inv_full_scale_per_a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn codes_are_offset_binary_and_round_trip_within_half_an_lsb() {
+        let s = DacScale::new(2.0).unwrap();
+        assert_eq!(s.code(0.0), 0x8000);
+        assert_eq!(s.code(-2.0), 0x0000);
+        assert_eq!(s.code(2.0), 0xFFFF); // +full scale saturates at the top code
+        assert_eq!(s.code(5.0), 0xFFFF);
+        assert_eq!(s.code(-5.0), 0x0000);
+        assert_eq!(s.code(f32::NAN), 0x8000);
+        let lsb = 2.0 / 32768.0;
+        let mut i = -1.99f32;
+        while i < 1.99 {
+            let back = s.current_a(s.code(i));
+            // Rounding to the nearest step: |error| <= LSB/2 (plus f32 rounding of the product).
+            assert!(
+                (back - i).abs() <= 0.5 * lsb + 4.0 * f32::EPSILON * 2.0,
+                "{i} -> {back}"
+            );
+            i += 0.0137;
+        }
+        assert!(DacScale::new(0.0).is_none() && DacScale::new(f32::INFINITY).is_none());
+    }
+}

@@ -1,0 +1,476 @@
+//! `cargo xtask qemu`: builds the mps2-an386 firmware, runs it under QEMU and checks it end to end.
+//!
+//! Steps (each prints what it does; any failure fails the command):
+//! 1. **Build** `firmware-qemu` (release, `--features board-mps2-an386`, `DEFMT_LOG=info`) into
+//!    `target/firmware/`.
+//! 2. **Run** `timeout 600 qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic
+//!    -semihosting-config enable=on,target=native -icount shift=10,sleep=off -kernel <elf>` in
+//!    `out/qemu/`; exit status must be 0. The defmt log (semihosting stdout) is decoded with the
+//!    ELF's defmt table and printed; the capture file `qemu_capture.bin` is parsed (record layout:
+//!    `magctl::board::mps2_an386::capture`).
+//! 3. **Instruction counts**: SysTick ticks / 25.6 per interrupt (the 25.6 is checked against the
+//!    firmware's calibration record: 1024 extra `nop`s), min/median/max for the dynamic, static and
+//!    naive phases, ratio naive/ours; the dynamic-phase worst case must be <= 1,500 instructions.
+//! 4. **Same computation on the host**: the host runs `magctl::inverse::ControlLoop` with the same
+//!    baked parameters; the captured currents and desired displacements must match bit for bit
+//!    (IEEE f32 on both sides, no FMA contraction in Rust), proving the firmware computed the same
+//!    trajectory and commands.
+//! 5. **Tracking error**: the captured currents drive a plant model, and its displacement is
+//!    compared with the captured Van der Pol trajectory: dynamic-inverse RMS error <= 1 % of the
+//!    trajectory's peak-to-peak; the static/dynamic ratio is reported (must exceed 2). The plant
+//!    is currently the core's `magctl::model::DynamicModel` (see [`track`]).
+//! 6. **Sizes**: flash (`.vector_table + .text + .rodata + .data`) and static RAM
+//!    (`.data + .bss + .uninit`) from the ELF's section headers.
+//! 7. **Fatal paths**: reruns QEMU with `arg=inject=panic` (exit 101) and `arg=inject=hardfault`
+//!    (exit 102).
+//! 8. **No-panic proof**: builds the firmware with `--features panic-never` (must link: no panic
+//!    path anywhere in the image, ISR included) and with `panic-never-canary` (a bounds check in
+//!    the ISR; must fail to link naming `__firmware_contains_a_reachable_panic_path`).
+//!
+//! Writes `out/qemu/capture.csv` (columns documented in [`CSV_HEADER`]), `out/qemu/summary.txt`.
+
+use crate::util::{display, Ctx};
+use anyhow::{bail, ensure, Context, Result};
+use magctl::inverse::{ControlLoop, InverseKind, LoopState};
+use magctl::model::{DynamicModel, ModelFaults, ModelState};
+use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
+use object::{Object, ObjectSection};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const TARGET: &str = "thumbv7em-none-eabihf";
+const RECORD_BYTES: usize = 40;
+/// SysTick ticks per instruction under `-icount shift=10` on the 25 MHz mps2: 1024 ns × 25 MHz.
+const TICKS_PER_INSTRUCTION: f64 = 25.6;
+/// Issue 5's goal for the whole handler.
+const MAX_INSTRUCTIONS: f64 = 1_500.0;
+const QEMU_TIMEOUT_S: &str = "600";
+const PANIC_SYMBOL: &str = "__firmware_contains_a_reachable_panic_path";
+
+/// Columns of `out/qemu/capture.csv`. `t_s` is the start of the period over which the current is
+/// held (tick index / sample rate); the desired values are those at `t_s + h` (the end of the
+/// period, what the inverse aims at). `instructions` = SysTick ticks / 25.6.
+pub const CSV_HEADER: &str = "phase,index,t_s,current_a,y_desired_m,y_rate_m_per_s,y_accel_m_per_s2,h_a_per_m,m_a_per_m,flags,dac_code,instructions";
+
+/// One parsed capture record.
+#[derive(Debug, Clone, Copy)]
+pub struct Record {
+    phase: u8,
+    flags: u8,
+    index: u32,
+    ticks: u32,
+    current_a: f32,
+    y_m: f32,
+    y_rate: f32,
+    y_accel: f32,
+    h: f32,
+    m: f32,
+    dac_code: u16,
+    overruns: u16,
+}
+
+fn parse_records(bytes: &[u8]) -> Result<Vec<Record>> {
+    ensure!(
+        bytes.len().is_multiple_of(RECORD_BYTES),
+        "capture length {} is not a multiple of {RECORD_BYTES}",
+        bytes.len()
+    );
+    Ok(bytes
+        .chunks_exact(RECORD_BYTES)
+        .map(|c| {
+            let w =
+                |i: usize| u32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]);
+            let f = |i: usize| f32::from_bits(w(i));
+            Record {
+                phase: (w(0) & 0xFF) as u8,
+                flags: ((w(0) >> 8) & 0xFF) as u8,
+                index: w(1),
+                ticks: w(2),
+                current_a: f(3),
+                y_m: f(4),
+                y_rate: f(5),
+                y_accel: f(6),
+                h: f(7),
+                m: f(8),
+                dac_code: (w(9) & 0xFFFF) as u16,
+                overruns: (w(9) >> 16) as u16,
+            }
+        })
+        .collect())
+}
+
+fn firmware_dir(ctx: &Ctx) -> PathBuf {
+    ctx.root.join("target").join("firmware")
+}
+
+fn build(ctx: &Ctx, features: &str) -> Command {
+    let mut cmd = ctx.cargo(&[
+        "build",
+        "-p",
+        "magctl",
+        "--release",
+        "--target",
+        TARGET,
+        "--features",
+        features,
+        "--bin",
+        "firmware-qemu",
+    ]);
+    cmd.env("CARGO_TARGET_DIR", firmware_dir(ctx))
+        .env("DEFMT_LOG", "info");
+    cmd
+}
+
+fn qemu(elf: &Path, out_dir: &Path, extra_arg: Option<&str>) -> Command {
+    let mut semi = String::from("enable=on,target=native,arg=firmware-qemu");
+    if let Some(a) = extra_arg {
+        semi.push_str(",arg=");
+        semi.push_str(a);
+    }
+    let mut cmd = Command::new("timeout");
+    cmd.args([
+        QEMU_TIMEOUT_S,
+        "qemu-system-arm",
+        "-machine",
+        "mps2-an386",
+        "-cpu",
+        "cortex-m4",
+    ])
+    .args(["-nographic", "-monitor", "none", "-serial", "none"])
+    .args([
+        "-semihosting-config",
+        &semi,
+        "-icount",
+        "shift=10,sleep=off",
+        "-kernel",
+    ])
+    .arg(elf)
+    .current_dir(out_dir);
+    cmd
+}
+
+fn decode_defmt(elf: &[u8], stream: &[u8]) -> Result<Vec<String>> {
+    let table = defmt_decoder::Table::parse(elf)?.context("the firmware ELF has no defmt table")?;
+    let mut decoder = table.new_stream_decoder();
+    decoder.received(stream);
+    let mut lines = Vec::new();
+    loop {
+        match decoder.decode() {
+            Ok(frame) => lines.push(frame.display(false).to_string()),
+            Err(defmt_decoder::DecodeError::UnexpectedEof) => break,
+            Err(defmt_decoder::DecodeError::Malformed) => bail!("malformed defmt frame in the log"),
+        }
+    }
+    Ok(lines)
+}
+
+/// (min, median, max) of a list.
+fn stats(mut v: Vec<f64>) -> (f64, f64, f64) {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    let median = if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    };
+    (v[0], median, v[n - 1])
+}
+
+fn section_sizes(elf: &[u8]) -> Result<(u64, u64)> {
+    let file = object::File::parse(elf)?;
+    let size = |name: &str| file.section_by_name(name).map(|s| s.size()).unwrap_or(0);
+    let flash = size(".vector_table") + size(".text") + size(".rodata") + size(".data");
+    let ram = size(".data") + size(".bss") + size(".uninit");
+    Ok((flash, ram))
+}
+
+/// Replays the captured currents of one phase through the plant, starting from the same state the
+/// controller assumed (same Preisach memory driven to `H_0`, `M_0`; `y, ẏ` on the trajectory),
+/// and returns (RMS error, peak-to-peak of ȳ) in metres.
+///
+/// Plant: the core's `DynamicModel` (implicit eddy step (4), exact discretization of (5)) at the
+/// control period. TODO(lead): switch to `host_tests::reference::dynamics` (the independent f64
+/// fine-step plant) once its API is settled; the captured CSV carries everything it needs.
+fn track(records: &[Record], kind: InverseKind) -> Result<(f64, f64)> {
+    let p = &BAKED_PARAMETERS;
+    let control = ControlLoop::new(&BAKED_MEASURE, p).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let start: LoopState<64> = control.init(kind);
+    let d0 = control.trajectory().motion(&start.core.trajectory);
+    let model = DynamicModel::new(&BAKED_MEASURE, &p.actuator, 1.0 / p.control.sample_rate_hz);
+    let mut plant = ModelState {
+        preisach: start.preisach.clone(),
+        h_a_per_m: start.core.memory.h_a_per_m,
+        m_a_per_m: start.core.memory.m_a_per_m,
+        displacement_m: d0.displacement_m,
+        velocity_m_per_s: d0.velocity_m_per_s,
+        current_a: start.core.last_current_a,
+        faults: ModelFaults::default(),
+    };
+    let (mut sq, mut lo, mut hi) = (0.0f64, f64::MAX, f64::MIN);
+    for r in records {
+        let y = model.step(&mut plant, r.current_a).displacement_m as f64;
+        let e = y - r.y_m as f64;
+        sq += e * e;
+        lo = lo.min(r.y_m as f64);
+        hi = hi.max(r.y_m as f64);
+    }
+    Ok(((sq / records.len() as f64).sqrt(), hi - lo))
+}
+
+/// The host recomputation must reproduce the firmware's stream bit for bit.
+fn replay_on_host(records: &[Record], kind: InverseKind) -> Result<()> {
+    let control = ControlLoop::new(&BAKED_MEASURE, &BAKED_PARAMETERS)
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let mut state: LoopState<64> = control.init(kind);
+    for r in records {
+        let out = control.tick(kind, &mut state);
+        ensure!(
+            out.current_a.to_bits() == r.current_a.to_bits()
+                && out.desired.displacement_m.to_bits() == r.y_m.to_bits(),
+            "{kind:?} tick {}: firmware current {} A / ȳ {} m, host {} A / {} m",
+            r.index,
+            r.current_a,
+            r.y_m,
+            out.current_a,
+            out.desired.displacement_m
+        );
+    }
+    Ok(())
+}
+
+/// Runs the whole check; returns the summary text.
+pub fn check(ctx: &Ctx) -> Result<String> {
+    let out_dir = ctx.root.join("out").join("qemu");
+    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let mut summary = String::new();
+    macro_rules! say {
+        ($($t:tt)*) => {{ let line = format!($($t)*); println!("{line}"); summary.push_str(&line); summary.push('\n'); }};
+    }
+
+    // 1. build
+    let cmd = build(ctx, "board-mps2-an386");
+    println!("$ {}", display(&cmd));
+    crate::util::run_checked(cmd)?;
+    let elf_path = firmware_dir(ctx)
+        .join(TARGET)
+        .join("release")
+        .join("firmware-qemu");
+    let elf =
+        std::fs::read(&elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
+
+    // 2. run
+    let capture_path = out_dir.join("qemu_capture.bin");
+    let _ = std::fs::remove_file(&capture_path);
+    let mut cmd = qemu(&elf_path, &out_dir, None);
+    println!("$ (cd out/qemu && {})", display(&cmd));
+    let started = std::time::Instant::now();
+    let output = cmd
+        .output()
+        .context("running timeout/qemu-system-arm (is QEMU installed? `cargo xtask setup`)")?;
+    let code = output.status.code();
+    for line in decode_defmt(&elf, &output.stdout)? {
+        println!("  [firmware] {line}");
+    }
+    if !output.stderr.is_empty() {
+        eprintln!("{}", String::from_utf8_lossy(&output.stderr));
+    }
+    ensure!(
+        code == Some(0),
+        "QEMU run exited with {code:?} (0 expected; 124 = timeout)"
+    );
+    say!(
+        "qemu: exit status 0 after {:.1} s host time",
+        started.elapsed().as_secs_f64()
+    );
+    let records =
+        parse_records(&std::fs::read(&capture_path).context("reading the capture file")?)?;
+
+    // 3. instruction counts
+    let cal = records
+        .first()
+        .filter(|r| r.phase == 0)
+        .context("no calibration record")?;
+    // The two timed blocks differ by exactly `index` nops; the surrounding reads may differ by one
+    // instruction depending on code generation, and SysTick rounds to whole ticks: accept
+    // ±(1 instruction + 1 tick) around index × 25.6.
+    let ticks_per_instruction = cal.ticks as f64 / cal.index as f64;
+    let expected_ticks = cal.index as f64 * TICKS_PER_INSTRUCTION;
+    say!(
+        "calibration: {} extra nops = {} SysTick ticks -> {:.4} ticks/instruction (expected {TICKS_PER_INSTRUCTION})",
+        cal.index, cal.ticks, ticks_per_instruction
+    );
+    ensure!(
+        (cal.ticks as f64 - expected_ticks).abs() <= TICKS_PER_INSTRUCTION + 1.0,
+        "SysTick does not count 25.6 ticks per instruction: {ticks_per_instruction}"
+    );
+    let rate = BAKED_PARAMETERS.control.sample_rate_hz as f64;
+    let phase = |k: u8| {
+        records
+            .iter()
+            .filter(|r| r.phase == k)
+            .copied()
+            .collect::<Vec<_>>()
+    };
+    let (dynamic, stat, naive) = (phase(1), phase(2), phase(3));
+    ensure!(
+        dynamic.len() as f64 >= rate && stat.len() as f64 >= rate,
+        "less than 1 s of control time captured"
+    );
+    ensure!(!naive.is_empty(), "no naive-phase records");
+    let instr = |rs: &[Record]| {
+        stats(
+            rs.iter()
+                .map(|r| r.ticks as f64 / TICKS_PER_INSTRUCTION)
+                .collect(),
+        )
+    };
+    let (d, s, n) = (instr(&dynamic), instr(&stat), instr(&naive));
+    say!("instructions per interrupt (min / median / max):");
+    say!(
+        "  dynamic inverse, exact Preisach inverse: {:.0} / {:.0} / {:.0}  ({} interrupts)",
+        d.0,
+        d.1,
+        d.2,
+        dynamic.len()
+    );
+    say!(
+        "  static inverse,  exact Preisach inverse: {:.0} / {:.0} / {:.0}  ({} interrupts)",
+        s.0,
+        s.1,
+        s.2,
+        stat.len()
+    );
+    say!(
+        "  dynamic inverse, naive (bisection):      {:.0} / {:.0} / {:.0}  ({} interrupts)",
+        n.0,
+        n.1,
+        n.2,
+        naive.len()
+    );
+    say!(
+        "  naive / ours: median {:.0}x, worst case {:.0}x",
+        n.1 / d.1,
+        n.2 / d.2
+    );
+    let overruns = records.iter().map(|r| r.overruns).max().unwrap_or(0);
+    let faults = records.iter().filter(|r| r.flags & 8 != 0).count();
+    say!("overruns {overruns}, fault flags {faults}");
+    ensure!(
+        overruns == 0 && faults == 0,
+        "overruns or faults in the QEMU run"
+    );
+    ensure!(
+        d.2 <= MAX_INSTRUCTIONS && s.2 <= MAX_INSTRUCTIONS,
+        "worst case above {MAX_INSTRUCTIONS} instructions"
+    );
+
+    // CSV
+    let mut csv = String::from(CSV_HEADER);
+    csv.push('\n');
+    for r in records.iter().filter(|r| r.phase != 0) {
+        let _ = writeln!(
+            csv,
+            "{},{},{:.6},{:e},{:e},{:e},{:e},{:e},{:e},{},{},{:.1}",
+            match r.phase {
+                1 => "dynamic",
+                2 => "static",
+                _ => "naive",
+            },
+            r.index,
+            r.index as f64 / rate,
+            r.current_a,
+            r.y_m,
+            r.y_rate,
+            r.y_accel,
+            r.h,
+            r.m,
+            r.flags,
+            r.dac_code,
+            r.ticks as f64 / TICKS_PER_INSTRUCTION
+        );
+    }
+    std::fs::write(out_dir.join("capture.csv"), csv)?;
+    say!("wrote out/qemu/capture.csv ({} rows)", records.len() - 1);
+
+    // 4. host replay
+    replay_on_host(&dynamic, InverseKind::Dynamic)?;
+    replay_on_host(&stat, InverseKind::Static)?;
+    say!("host replay: firmware currents and trajectory identical bit for bit (dynamic and static phases)");
+
+    // 5. tracking
+    let (dyn_rms, p2p) = track(&dynamic, InverseKind::Dynamic)?;
+    let (stat_rms, _) = track(&stat, InverseKind::Static)?;
+    say!(
+        "tracking (plant: magctl::model::DynamicModel): dynamic inverse RMS {:.3e} m = {:.4} % of p2p {:.3e} m; static inverse RMS {:.3e} m = {:.2} %; static/dynamic = {:.0}x",
+        dyn_rms, 100.0 * dyn_rms / p2p, p2p, stat_rms, 100.0 * stat_rms / p2p, stat_rms / dyn_rms
+    );
+    ensure!(
+        dyn_rms <= 0.01 * p2p,
+        "dynamic-inverse RMS error above 1 % of the peak-to-peak"
+    );
+    ensure!(
+        stat_rms > 2.0 * dyn_rms,
+        "static inverse not clearly worse than the dynamic one"
+    );
+
+    // 6. sizes
+    let (flash, ram) = section_sizes(&elf)?;
+    say!("firmware-qemu sizes: flash {flash} B, static RAM {ram} B (stack not included)");
+
+    // 7. fatal paths (before the proof builds, which replace the binary)
+    for (arg, want) in [("inject=panic", 101), ("inject=hardfault", 102)] {
+        let got = qemu(&elf_path, &out_dir, Some(arg)).output()?.status.code();
+        ensure!(
+            got == Some(want),
+            "{arg}: QEMU exit status {got:?}, expected {want}"
+        );
+        say!("fatal path {arg}: QEMU exited with {want}");
+    }
+    // 8. no-panic proof (last: it replaces the binary; the summary is written first)
+    let cmd = build(ctx, "board-mps2-an386,panic-never");
+    println!("$ {}", display(&cmd));
+    std::fs::write(out_dir.join("summary.txt"), &summary)?;
+    let proof = run_capture(cmd)?;
+    if !proof.0 {
+        bail!(
+            "no-panic proof FAILED: the firmware image still contains a reachable panic path:\n{}",
+            proof
+                .1
+                .lines()
+                .filter(|l| l.contains("undefined symbol") || l.contains(">>> referenced"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+    }
+    let cmd = build(ctx, "board-mps2-an386,panic-never-canary");
+    println!("$ {}", display(&cmd));
+    let canary = run_capture(cmd)?;
+    ensure!(
+        !canary.0 && canary.1.contains(PANIC_SYMBOL),
+        "the canary build (a panic in the ISR) linked: the no-panic proof would not catch a panic"
+    );
+    say!("no-panic proof: panic-never build links; the canary (bounds check in the ISR) fails to link as it must");
+
+    std::fs::write(out_dir.join("summary.txt"), &summary)?;
+    Ok(summary)
+}
+
+/// Runs a command, returning (success, stderr).
+fn run_capture(mut cmd: Command) -> Result<(bool, String)> {
+    let out = cmd
+        .output()
+        .with_context(|| format!("running {}", display(&cmd)))?;
+    Ok((
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    ))
+}
+
+/// `cargo xtask qemu`.
+pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
+    if let Some(extra) = args.first() {
+        bail!("`qemu` takes no arguments, got `{extra}`");
+    }
+    check(ctx).map(|_| ())
+}
