@@ -33,8 +33,8 @@ pub struct Actuator {
 }
 
 impl Actuator {
-    /// c1 = R_eddy / (μ0 N_m A_m) of equation (4), in A/(m·s) per A of current... i.e. the
-    /// coefficient with `H' + M' = c1 (I - H / c0)`, unit 1/(m·s) (H, M in A/m, I in A).
+    /// `c1 = R_eddy / (μ0 N_m A_m)`, the coefficient of equation (4), `H' + M' = c1 (I - H / c0)`.
+    /// Unit 1/(m·s): it turns a current (A) into a rate of field (A/(m·s)).
     pub fn eddy_coefficient_per_m_s(&self) -> f32 {
         self.eddy_resistance_ohm
             / (VACUUM_PERMEABILITY_H_PER_M * self.coil_turns * self.rod_area_m2)

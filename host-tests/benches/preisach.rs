@@ -14,7 +14,7 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use magctl::params::BAKED_PARAMETERS;
 use magctl::preisach::naive::NaiveState;
-use magctl::preisach::{PreisachMeasure, PreisachState, LEVELS};
+use magctl::preisach::{PreisachMeasure, PreisachState, DEMAGNETIZATION_HISTORY, LEVELS};
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
 use std::hint::black_box;
@@ -67,11 +67,9 @@ fn naive_demagnetized(measure: &PreisachMeasure) -> NaiveState {
     // The same history `PreisachMeasure::demagnetized` documents, applied to the naive memory.
     let mut s = NaiveState::negative_saturation();
     let field = |x: f32| measure.h_min_a_per_m() + x * measure.cell_width_a_per_m();
-    for k in 0..LEVELS / 2 {
-        measure.naive_apply(&mut s, field(LEVELS as f32 - 0.5 - k as f32));
-        measure.naive_apply(&mut s, field(k as f32 + 1.0));
+    for &x in DEMAGNETIZATION_HISTORY.iter() {
+        measure.naive_apply(&mut s, field(x));
     }
-    measure.naive_apply(&mut s, field(0.5 * LEVELS as f32));
     s
 }
 

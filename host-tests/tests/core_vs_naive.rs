@@ -74,13 +74,13 @@ fn inverse_round_trips() {
 }
 
 #[test]
-fn demagnetized_is_near_zero_for_symmetric_measure() {
+fn demagnetized_output_is_zero_for_symmetric_measure() {
     let m = measure();
     let s: PreisachState = m.demagnetized();
-    let centre = m.cell_mass_a_per_m(12, 12);
+    // The baked default measure is symmetric about the middle of the range, so the ideal
+    // demagnetized output is 0, and the history reproduces the ideal state exactly: only the f32
+    // rounding of one output with the demagnetized staircase remains.
     let out = m.output_a_per_m(&s);
-    assert!(
-        (out + 0.5 * centre).abs() < 1.0,
-        "demag output {out}, centre cell {centre}"
-    );
+    let tol = host_tests::bounds::output_rounding_a_per_m(&m, s.len()) as f32;
+    assert!(out.abs() <= tol, "demag output {out} A/m, tolerance {tol}");
 }

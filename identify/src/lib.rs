@@ -17,9 +17,14 @@
 //! * [`model`]: a fitted generic Preisach model (JSON), its prediction and the NRMSE metric.
 //! * [`magnetization`]: displacement → magnetization through the static model (6).
 //! * [`excite`]: the quasi-static excitation current (first-order reversal curves).
-//! * [`actuator`]: `maglab identify`: dataset → weights → the full `ActuatorParams` JSON with
-//!   provenance. R_eddy, ξ and f0 are not identified yet (they need the dynamic model): they are
-//!   copied from a base parameter file and the provenance says so.
+//! * [`experiments`]: the dataset convention — which files are quasi-static and which are dynamic
+//!   (sub-folders `quasi-static/`, `dynamic/`, or the spectrum of each file's current), and
+//!   [`spectrum`]: excitation frequency (FFT) and fundamental phasors (harmonic least squares).
+//! * [`dynamics`]: `R_eddy`, `ξ`, `f0` from the dynamic experiments with the core's model (4)-(5):
+//!   the paper's phase-lag scheme and a direct waveform fit (Levenberg-Marquardt).
+//! * [`actuator`]: `maglab identify`: dataset → weights (and, with dynamic experiments, R_eddy,
+//!   ξ, f0) → the full `ActuatorParams` JSON with provenance. Without dynamic experiments R_eddy,
+//!   ξ and f0 are copied from a base parameter file and the provenance says so.
 //!
 //! Grid conventions are the core's (`magctl::preisach`): 25 equal intervals of `[h_min, h_max]`,
 //! cell `(i, j)` (β in interval `i`, α in interval `j`, `i <= j`), alpha-major index
@@ -30,11 +35,14 @@ pub mod cells;
 pub mod columns;
 pub mod data;
 pub mod design;
+pub mod dynamics;
 pub mod excite;
+pub mod experiments;
 pub mod fit;
 pub mod magnetization;
 pub mod memory;
 pub mod model;
+pub mod spectrum;
 
 /// Number of input levels of the grid (the core's `LEVELS`).
 pub const LEVELS: usize = actuator_params::PREISACH_LEVELS;

@@ -118,12 +118,10 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
         // `Demagnetized` is the fine-step line: replay the same history instead, exactly.
         let l = maglab_identify::LEVELS as f64;
         let width = (h_max - h_min) / l;
-        let mut prefix = Vec::new();
-        for k in 0..maglab_identify::LEVELS / 2 {
-            prefix.push(h_min + (l - 0.5 - k as f64) * width);
-            prefix.push(h_min + (k as f64 + 1.0) * width);
-        }
-        prefix.push(h_min + 0.5 * l * width);
+        let prefix: Vec<f64> = magctl::preisach::DEMAGNETIZATION_HISTORY
+            .iter()
+            .map(|&x| h_min + x as f64 * width)
+            .collect();
         let full: Vec<f64> = prefix.iter().chain(&input).copied().collect();
         let predicted = model.predict(&full, InitialState::NegativeSaturation);
         let predicted = &predicted[prefix.len()..];

@@ -42,4 +42,6 @@ mod staircase;
 pub use everett::PreisachMeasure;
 pub use grid::{cell_index, cell_of_index, CELL_COUNT, LEVELS};
 pub use solve::{Saturation, Solution, SolveError};
-pub use staircase::{InputError, PreisachState, DEFAULT_CAPACITY};
+pub use staircase::{
+    InputError, PreisachState, DEFAULT_CAPACITY, DEMAGNETIZATION_HISTORY, DEMAGNETIZATION_STEPS,
+};

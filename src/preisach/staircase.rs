@@ -24,7 +24,7 @@
 //! The staircase lives in a fixed `heapless::Vec` of `N` vertices ([`DEFAULT_CAPACITY`] = 64,
 //! 512 bytes). Each stored pair is a nested minor loop still "remembered"; a 25-level grid with a
 //! smooth drive rarely needs more than a dozen (the Van der Pol trajectory of the controller
-//! needs fewer than 8, the AC-demagnetized state 25). 64 leaves room for noisy, slowly decaying
+//! needs fewer than 8, the AC-demagnetized state 27). 64 leaves room for noisy, slowly decaying
 //! oscillations while keeping the worst-case merge error small (below).
 //!
 //! When a new reversal would overflow the buffer, the pair `(s_j, s_{j+1})` whose removal changes
@@ -49,6 +49,49 @@
 use super::everett::PreisachMeasure;
 use super::grid::LEVELS;
 use heapless::Vec;
+
+/// Number of reversal inputs in [`DEMAGNETIZATION_HISTORY`].
+pub const DEMAGNETIZATION_STEPS: usize = 2 * (LEVELS / 2) + 3;
+
+/// The AC-demagnetization input history (normalized inputs, applied in order from negative
+/// saturation) that defines the demagnetized state, the discrete counterpart of the ideal state
+/// `P₊ = {α + β < L}` (the line `α = -β` about the middle of the range).
+///
+/// * Reversals stepping inward one grid interval at a time: maxima `L - ½ - k` and minima `k + 1`,
+///   `k = 0 .. ⌊L/2⌋ - 1`. Every horizontal and vertical step of the resulting staircase has its
+///   midpoint on the line `α + β = L`, so around each corner the staircase deviates from the line
+///   by two triangles of equal area and opposite sign lying in the same cell: with a density
+///   uniform per cell they cancel exactly.
+/// * The middle diagonal cell `c = ⌊L/2⌋` (the line cuts it into halves) is finished with three
+///   more inputs: up to `c + 1`, down to `c + ¼`, up to `c + ½ = L/2`. In the cell's own
+///   coordinates that switches on `{β' < ¼} ∪ {¼ <= β' <= α' <= ½}`, area `¼ - 1/32 + 1/32 = ¼`:
+///   exactly half of the half-square, as the ideal state has. Only cell masses matter for a
+///   uniform density, so the output equals the ideal demagnetized output exactly (0 for a
+///   measure symmetric about the middle of the range).
+///
+/// The reference simulator and the identification tests replay this same history.
+pub const DEMAGNETIZATION_HISTORY: [f32; DEMAGNETIZATION_STEPS] = demagnetization_history();
+
+const fn demagnetization_history() -> [f32; DEMAGNETIZATION_STEPS] {
+    const {
+        assert!(
+            LEVELS % 2 == 1,
+            "the demagnetization history is written for an odd level count"
+        )
+    };
+    let mut out = [0.0f32; DEMAGNETIZATION_STEPS];
+    let mut k = 0;
+    while k < LEVELS / 2 {
+        out[2 * k] = LEVELS as f32 - 0.5 - k as f32;
+        out[2 * k + 1] = (k + 1) as f32;
+        k += 1;
+    }
+    let c = (LEVELS / 2) as f32;
+    out[2 * (LEVELS / 2)] = c + 1.0;
+    out[2 * (LEVELS / 2) + 1] = c + 0.25;
+    out[2 * (LEVELS / 2) + 2] = c + 0.5;
+    out
+}
 
 /// Default staircase capacity (vertices, including the anchor). See the module docs.
 pub const DEFAULT_CAPACITY: usize = 64;
@@ -175,26 +218,14 @@ impl PreisachMeasure {
     }
 
     /// The demagnetized state: the staircase along `α = -β` left by an AC demagnetization, with
-    /// the input at the middle of the range.
-    ///
-    /// It is reached from negative saturation by reversals stepping inward one grid interval at a
-    /// time: maxima at `L - ½ - k`, minima at `k + 1`, `k = 0 .. ⌊L/2⌋`, then the input rises to
-    /// `L / 2`. Every horizontal and vertical step of that staircase has its midpoint on the line
-    /// `α + β = L`, so the two small triangles by which it deviates from the line around each
-    /// corner lie in the same cell with equal areas and opposite signs: with a density uniform per
-    /// cell they cancel exactly. Only the middle diagonal cell is approximated: there the state
-    /// holds `¼` of the cell switched on instead of `½`, an output offset of `-w_c / 2` (`w_c`
-    /// that cell's mass).
+    /// the input at the middle of the range. It is the state [`DEMAGNETIZATION_HISTORY`] leads to
+    /// from negative saturation; see there why it equals the ideal state `P₊ = {α + β < L}`
+    /// exactly for a density uniform per cell.
     pub fn demagnetized<const N: usize>(&self) -> PreisachState<N> {
         let mut state = self.negative_saturation::<N>();
-        let half = LEVELS / 2;
-        let mut k = 0;
-        while k < half {
-            self.move_to(&mut state, LEVELS as f32 - 0.5 - k as f32);
-            self.move_to(&mut state, (k + 1) as f32);
-            k += 1;
+        for &x in DEMAGNETIZATION_HISTORY.iter() {
+            self.move_to(&mut state, x);
         }
-        self.move_to(&mut state, 0.5 * LEVELS as f32);
         state
     }
 

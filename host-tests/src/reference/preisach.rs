@@ -278,17 +278,14 @@ impl RelayPreisach {
         }
     }
 
-    /// The AC-demagnetized state, *defined by its input history* (the one `magctl` documents for
-    /// `PreisachMeasure::demagnetized`): from negative saturation, maxima `L - ½ - k` and minima
-    /// `k + 1` for `k = 0, 1, …, ⌊L/2⌋ - 1`, then the input rises to `L / 2` (normalized units).
+    /// The AC-demagnetized state, *defined by its input history*
+    /// (`magctl::preisach::DEMAGNETIZATION_HISTORY`, normalized inputs from negative saturation).
+    /// The history is data, not algorithm: replaying it on the relays keeps this independent.
     pub fn demagnetized(&self) -> RelayState {
         let mut state = self.negative_saturation();
-        let l = LEVELS as f64;
-        for k in 0..LEVELS / 2 {
-            self.apply_normalized(&mut state, l - 0.5 - k as f64);
-            self.apply_normalized(&mut state, k as f64 + 1.0);
+        for &x in magctl::preisach::DEMAGNETIZATION_HISTORY.iter() {
+            self.apply_normalized(&mut state, x as f64);
         }
-        self.apply_normalized(&mut state, 0.5 * l);
         state
     }
 
