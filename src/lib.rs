@@ -6,7 +6,8 @@
 //!   inside each cell (paper Section 4), its memory staircase, forward evaluation, the exact inverse
 //!   and the monotone solve `a·h + Γ(h) = r`.
 //! * [`model`]: the dynamic model (4)-(5) stepped at the control rate, and the static model (6).
-//! * [`inverse`]: inverse control (paper Section 5); here the static-model inverse (6).
+//! * [`inverse`]: inverse control (paper Section 5): the dynamic-model and static-model inverses,
+//!   output limits, and the control loop one timer interrupt runs.
 //! * [`params`]: the actuator parameters baked in at build time from the JSON file.
 //! * [`trajectory`]: the Van der Pol desired trajectory integrated on the chip.
 //! * [`output`]: current command → DAC code (fixed point) → SPI DAC through embedded-hal.
@@ -16,6 +17,10 @@
 //! never panics on its update paths (errors are values).
 #![no_std]
 #![deny(missing_docs)]
+
+// Host tools only (feature `host`): run-time parameter-file conversion needs `String`.
+#[cfg(feature = "host")]
+extern crate std;
 
 #[cfg(target_os = "none")]
 pub mod board;

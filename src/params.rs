@@ -103,3 +103,93 @@ pub static BAKED_MEASURE: crate::preisach::PreisachMeasure = crate::preisach::Pr
     BAKED_PARAMETERS.preisach.h_min_a_per_m,
     BAKED_PARAMETERS.preisach.h_max_a_per_m,
 );
+
+#[cfg(feature = "host")]
+mod from_file {
+    //! Run-time conversion of a parameter file (host tools), the same f64 → f32 narrowing
+    //! `build.rs` applies when it bakes a file.
+
+    use super::{Actuator, ActuatorParameters, Control, PreisachGrid, Trajectory};
+    use crate::preisach::CELL_COUNT;
+    use actuator_params::{ActuatorParams, ParamsError};
+    use std::format;
+    use std::string::ToString;
+
+    impl Actuator {
+        /// The actuator constants of a parameter file, in f32.
+        pub fn from_file(a: &actuator_params::Actuator) -> Self {
+            Actuator {
+                coil_turns: a.coil_turns as f32,
+                rod_area_m2: a.rod_area_m2 as f32,
+                rod_length_m: a.rod_length_m as f32,
+                coil_factor_per_m: a.coil_factor_per_m as f32,
+                saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m as f32,
+                saturation_magnetostriction: a.saturation_magnetostriction as f32,
+                resonance_hz: a.resonance_hz as f32,
+                eddy_resistance_ohm: a.eddy_resistance_ohm as f32,
+                damping_ratio: a.damping_ratio as f32,
+            }
+        }
+    }
+
+    impl PreisachGrid {
+        /// The Preisach grid of a parameter file, in f32. Fails (naming the field) when the file
+        /// does not carry exactly [`CELL_COUNT`] weights.
+        pub fn from_file(
+            p: &actuator_params::Preisach,
+            source_name: &str,
+        ) -> Result<Self, ParamsError> {
+            if p.weights_a_per_m.len() != CELL_COUNT {
+                return Err(ParamsError {
+                    source_name: source_name.to_string(),
+                    field: "preisach.weights_a_per_m".into(),
+                    reason: format!(
+                        "the core needs {CELL_COUNT} weights, the file has {}",
+                        p.weights_a_per_m.len()
+                    ),
+                });
+            }
+            let mut weights_a_per_m = [0.0f32; CELL_COUNT];
+            for (dst, &src) in weights_a_per_m.iter_mut().zip(&p.weights_a_per_m) {
+                *dst = src as f32;
+            }
+            Ok(PreisachGrid {
+                h_min_a_per_m: p.h_min_a_per_m as f32,
+                h_max_a_per_m: p.h_max_a_per_m as f32,
+                weights_a_per_m,
+            })
+        }
+
+        /// The Preisach measure (operator coefficients) of this grid.
+        pub fn measure(&self) -> crate::preisach::PreisachMeasure {
+            crate::preisach::PreisachMeasure::new(
+                &self.weights_a_per_m,
+                self.h_min_a_per_m,
+                self.h_max_a_per_m,
+            )
+        }
+    }
+
+    impl ActuatorParameters {
+        /// All parameters of a (validated) parameter file in the core's f32 types.
+        pub fn from_file(file: &ActuatorParams, source_name: &str) -> Result<Self, ParamsError> {
+            let c = &file.control;
+            let t = &file.trajectory;
+            Ok(ActuatorParameters {
+                actuator: Actuator::from_file(&file.actuator),
+                preisach: PreisachGrid::from_file(&file.preisach, source_name)?,
+                control: Control {
+                    sample_rate_hz: c.sample_rate_hz as f32,
+                    current_limit_a: c.current_limit_a as f32,
+                    current_slew_limit_a_per_s: c.current_slew_limit_a_per_s as f32,
+                },
+                trajectory: Trajectory {
+                    van_der_pol_mu: t.van_der_pol_mu as f32,
+                    frequency_scale_hz: t.frequency_scale_hz as f32,
+                    displacement_min_m: t.displacement_min_m as f32,
+                    displacement_max_m: t.displacement_max_m as f32,
+                },
+            })
+        }
+    }
+}

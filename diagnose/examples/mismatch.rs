@@ -52,6 +52,32 @@ fn main() {
                 .sqrt();
             line += &format!(" S{s}: {:.3}% ({:?})", 100.0 * rms / range, el);
         }
+        let y4 = simulate(
+            &nominal,
+            &measure,
+            &Augmentation::default(),
+            &e.current_a,
+            1e-4,
+            4,
+        );
+        let y8 = simulate(
+            &nominal,
+            &measure,
+            &Augmentation::default(),
+            &e.current_a,
+            1e-4,
+            8,
+        );
+        let n = y4.len();
+        let rms = (0..n)
+            .skip(n / 10)
+            .map(|k| {
+                let r = 2.0 * y8[k] - y4[k] - e.displacement_m[k];
+                r * r
+            })
+            .sum::<f64>()
+            / (n - n / 10) as f64;
+        line += &format!(" R4/8: {:.3}%", 100.0 * rms.sqrt() / range);
         println!("{line}  stroke {:.1}um", stroke * 1e6);
     }
 }

@@ -49,9 +49,24 @@ pub fn parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
     let f0 = nominal.resonance_hz;
     match effect {
         EffectName::EddyFrequencyDependence => vec![
-            ParamSpec { name: "dc_ohm", lo: r / 10.0, hi: r * 10.0, log: true },
-            ParamSpec { name: "hf_to_dc_ratio", lo: 1.0, hi: 30.0, log: true },
-            ParamSpec { name: "corner_hz", lo: 5.0, hi: 5000.0, log: true },
+            ParamSpec {
+                name: "dc_ohm",
+                lo: r / 10.0,
+                hi: r * 10.0,
+                log: true,
+            },
+            ParamSpec {
+                name: "hf_to_dc_ratio",
+                lo: 1.0,
+                hi: 30.0,
+                log: true,
+            },
+            ParamSpec {
+                name: "corner_hz",
+                lo: 5.0,
+                hi: 5000.0,
+                log: true,
+            },
         ],
         EffectName::AmplifierBandwidth => vec![ParamSpec {
             name: "corner_hz",
@@ -60,8 +75,18 @@ pub fn parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
             log: true,
         }],
         EffectName::SensorDynamics => vec![
-            ParamSpec { name: "corner_hz", lo: 10.0, hi: 50_000.0, log: true },
-            ParamSpec { name: "delay_s", lo: 0.0, hi: 2.0e-3, log: false },
+            ParamSpec {
+                name: "corner_hz",
+                lo: 10.0,
+                hi: 50_000.0,
+                log: true,
+            },
+            ParamSpec {
+                name: "delay_s",
+                lo: 0.0,
+                hi: 2.0e-3,
+                log: false,
+            },
         ],
         EffectName::ReversibleMagnetization => vec![ParamSpec {
             name: "susceptibility",
@@ -70,8 +95,18 @@ pub fn parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
             log: false,
         }],
         EffectName::ThermalDrift => vec![
-            ParamSpec { name: "time_constant_s", lo: 1e-3, hi: 100.0, log: true },
-            ParamSpec { name: "scale_loss_per_a2", lo: -0.5, hi: 0.5, log: false },
+            ParamSpec {
+                name: "time_constant_s",
+                lo: 1e-3,
+                hi: 100.0,
+                log: true,
+            },
+            ParamSpec {
+                name: "scale_loss_per_a2",
+                lo: -0.5,
+                hi: 0.5,
+                log: false,
+            },
         ],
         EffectName::DeltaEEffect => vec![ParamSpec {
             name: "stiffness_change",
@@ -80,9 +115,24 @@ pub fn parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
             log: false,
         }],
         EffectName::MechanicalLoad => vec![
-            ParamSpec { name: "mass_ratio", lo: 0.01, hi: 10.0, log: true },
-            ParamSpec { name: "coupling_hz", lo: 0.3 * f0, hi: 20.0 * f0, log: true },
-            ParamSpec { name: "damping_ratio", lo: 0.01, hi: 3.0, log: true },
+            ParamSpec {
+                name: "mass_ratio",
+                lo: 0.01,
+                hi: 10.0,
+                log: true,
+            },
+            ParamSpec {
+                name: "coupling_hz",
+                lo: 0.3 * f0,
+                hi: 20.0 * f0,
+                log: true,
+            },
+            ParamSpec {
+                name: "damping_ratio",
+                lo: 0.01,
+                hi: 3.0,
+                log: true,
+            },
         ],
         EffectName::Backlash => Vec::new(),
     }
@@ -110,9 +160,10 @@ pub fn starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
             out.push(vec![1.0, 0.2]);
             out
         }
-        EffectName::ReversibleMagnetization => {
-            [0.5, 2.0, 6.0, 15.0].iter().map(|&c| vec![specs[0].coordinate(c)]).collect()
-        }
+        EffectName::ReversibleMagnetization => [0.5, 2.0, 6.0, 15.0]
+            .iter()
+            .map(|&c| vec![specs[0].coordinate(c)])
+            .collect(),
         EffectName::ThermalDrift => {
             let mut out = Vec::new();
             for tau in [0.2, 0.45, 0.7] {
@@ -122,9 +173,10 @@ pub fn starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
             }
             out
         }
-        EffectName::DeltaEEffect => {
-            [-0.5, 0.5, 2.0, 6.0].iter().map(|&c| vec![specs[0].coordinate(c)]).collect()
-        }
+        EffectName::DeltaEEffect => [-0.5, 0.5, 2.0, 6.0]
+            .iter()
+            .map(|&c| vec![specs[0].coordinate(c)])
+            .collect(),
         EffectName::MechanicalLoad => {
             let mut out = Vec::new();
             for ratio in [0.3, 0.6] {

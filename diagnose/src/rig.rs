@@ -89,8 +89,8 @@ impl Default for RigOptions {
             rate_hz: 10_000.0,
             duration_s: 1.0,
             substeps: 20,
-            relay_subdivision: 16,
-            noise_m: 30e-9,
+            relay_subdivision: 64,
+            noise_m: 0.15e-6,
             quantization_m: 2e-9,
             seed: 1,
         }

@@ -30,7 +30,11 @@ pub fn dominant_frequency_hz(x: &[f64], rate_hz: f64) -> Option<f64> {
             spectrum[k + 1].1.max(1e-300).ln(),
         );
         let denom = a - 2.0 * b + c;
-        let shift = if denom.abs() > 0.0 { 0.5 * (a - c) / denom } else { 0.0 };
+        let shift = if denom.abs() > 0.0 {
+            0.5 * (a - c) / denom
+        } else {
+            0.0
+        };
         return Some((k as f64 + shift.clamp(-0.5, 0.5)) * df);
     }
     Some(k as f64 * df)
@@ -143,9 +147,13 @@ pub fn branch_labels(x: &[f64]) -> BranchLabels {
     let mut ascending = vec![true; n];
     let mut near = vec![false; n];
     if n < 3 {
-        return BranchLabels { ascending, near_reversal: near };
+        return BranchLabels {
+            ascending,
+            near_reversal: near,
+        };
     }
-    let range = x.iter().cloned().fold(f64::MIN, f64::max) - x.iter().cloned().fold(f64::MAX, f64::min);
+    let range =
+        x.iter().cloned().fold(f64::MIN, f64::max) - x.iter().cloned().fold(f64::MAX, f64::min);
     // Hysteresis threshold for a direction change: 2 % of the range.
     let threshold = 0.02 * range;
     let mut reversals = vec![0usize];
@@ -200,7 +208,10 @@ pub fn branch_labels(x: &[f64]) -> BranchLabels {
             near[k] = d <= 0.15 * len;
         }
     }
-    BranchLabels { ascending, near_reversal: near }
+    BranchLabels {
+        ascending,
+        near_reversal: near,
+    }
 }
 
 #[cfg(test)]
@@ -224,7 +235,9 @@ mod tests {
     #[test]
     fn fundamental_and_labels_of_a_sine() {
         let rate = 10_000.0;
-        let x: Vec<f64> = (0..5000).map(|k| 0.5 + 0.3 * (2.0 * PI * 50.0 * k as f64 / rate).sin()).collect();
+        let x: Vec<f64> = (0..5000)
+            .map(|k| 0.5 + 0.3 * (2.0 * PI * 50.0 * k as f64 / rate).sin())
+            .collect();
         let f = dominant_frequency_hz(&x, rate).unwrap();
         assert!((f - 50.0).abs() < 0.5, "{f}");
         let r = whole_periods(100, 5000, 50.0, rate);

@@ -116,7 +116,10 @@ impl SplitDataset {
 /// Harmonics used to refine the excitation frequency (the current's own distortion).
 const CURRENT_HARMONICS: usize = 3;
 
-fn list(dir: &Path) -> Result<(Vec<PathBuf>, Vec<PathBuf>, Vec<PathBuf>), DataError> {
+/// Entries of a folder: `(*.csv files, sub-folders, other entries)`, each sorted.
+type Listing = (Vec<PathBuf>, Vec<PathBuf>, Vec<PathBuf>);
+
+fn list(dir: &Path) -> Result<Listing, DataError> {
     let entries = std::fs::read_dir(dir)
         .map_err(|e| DataError::file(dir, format!("cannot read the dataset folder: {e}")))?;
     let (mut files, mut dirs, mut other) = (Vec::new(), Vec::new(), Vec::new());

@@ -1,14 +1,27 @@
-//! `maglab identify`: a dataset folder of quasi-static measurements → the full parameter JSON
-//! (`maglab_identify::actuator`), with the Preisach masses identified and R_eddy, ξ, f0 copied
-//! from the base file (they need the dynamic model; the output and the provenance say so).
-//! Plots: the identified masses on the Preisach plane and measured vs predicted loops.
+//! `maglab identify`: a dataset folder → the full parameter JSON.
+//!
+//! The files are split by the dataset convention (`maglab_identify::experiments`: sub-folders
+//! `quasi-static/` and `dynamic/`, or the spectrum of each file's current). The quasi-static files
+//! give the Preisach masses (`maglab_identify::actuator`); the dynamic files (sinusoidal currents
+//! with DC bias at several frequencies) give R_eddy and ξ by the paper's phase-lag scheme and
+//! R_eddy, ξ, f0 by the direct waveform fit (`maglab_identify::dynamics`), reported side by side.
+//! Without dynamic files R_eddy, ξ, f0 are copied from the base file and the provenance says so.
+//! Plots: the identified masses on the Preisach plane, measured vs predicted M-H loops, the
+//! Figure 5 chart (ξ against frequency per candidate R_eddy) and measured vs predicted
+//! displacement loops per frequency.
 
 use crate::plot::{Figure, Panel, Series, PALETTE};
 use crate::plot_preisach::WeightMap;
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
+use indicatif::{ProgressBar, ProgressStyle};
 use maglab_identify::actuator::{identify, IdentifyOptions};
-use maglab_identify::data::load_dataset;
+use maglab_identify::dynamics::simulate::SimulationOptions;
+use maglab_identify::dynamics::{
+    fit_eddy_and_damping, record, CurrentBetweenSamples, DynamicFit, DynamicOptions, Start,
+    TERFENOL_RESISTIVITY_OHM_M,
+};
+use maglab_identify::experiments::{load_split_dataset, ClassifyOptions, SplitDataset};
 use maglab_identify::fit::{FitOptions, Unexcited};
 use maglab_identify::magnetization::Branch;
 use maglab_identify::memory::InitialState;
@@ -17,7 +30,9 @@ use std::path::PathBuf;
 /// Arguments of `maglab identify`.
 #[derive(Debug, Parser)]
 pub struct Args {
-    /// Folder of measurement files (`t_s,current_a,displacement_m`, quasi-static).
+    /// Dataset folder of measurement files (`t_s,current_a,displacement_m`): quasi-static and
+    /// dynamic experiments, in `quasi-static/` and `dynamic/` sub-folders or classified by the
+    /// spectrum of their current (docs/identification.md).
     dataset: PathBuf,
     /// Output parameter file.
     #[arg(short, long)]
@@ -53,6 +68,29 @@ pub struct Args {
     /// Directory for the plots.
     #[arg(long, default_value = "out")]
     plot_dir: PathBuf,
+    /// Lowest excitation frequency of a dynamic file (spectrum rule), Hz.
+    #[arg(long, default_value_t = 10.0)]
+    dynamic_min_hz: f64,
+    /// Initial memory of every dynamic experiment (at rest under its first current):
+    /// demagnetized, negative-saturation, positive-saturation.
+    #[arg(long, default_value = "demagnetized")]
+    dynamic_start: String,
+    /// The recorded current between samples: `linear` (samples of a continuous current) or
+    /// `hold` (a command held over each sample, e.g. `maglab rig`).
+    #[arg(long, default_value = "linear")]
+    current_between_samples: String,
+    /// Longest model step of the dynamic simulations, s.
+    #[arg(long, default_value_t = 5e-6)]
+    max_substep_s: f64,
+    /// f0 assumed by the phase-lag scheme, Hz (default: the base file's).
+    #[arg(long)]
+    resonance_hz: Option<f64>,
+    /// Resistivity of the rod for the upper bound R̄ of R_eddy, Ω·m.
+    #[arg(long, default_value_t = TERFENOL_RESISTIVITY_OHM_M)]
+    resistivity_ohm_m: f64,
+    /// Skip the waveform fit (write the phase-lag scheme's R_eddy, ξ and the base f0).
+    #[arg(long)]
+    no_waveform_fit: bool,
 }
 
 /// Runs `maglab identify`.
@@ -79,11 +117,33 @@ pub fn run(args: &Args) -> Result<()> {
             row_stride: args.row_stride,
         },
     };
-    let dataset = load_dataset(&args.dataset)?;
-    for p in &dataset.ignored {
+    let split = load_split_dataset(
+        &args.dataset,
+        &ClassifyOptions {
+            dynamic_min_hz: args.dynamic_min_hz,
+            ..ClassifyOptions::default()
+        },
+    )?;
+    for p in &split.ignored {
         println!("not read (not a *.csv file): {}", p.display());
     }
-    let id = identify(&dataset, &base, &base_name, &options)?;
+    for c in &split.classification {
+        println!(
+            "{}: {} ({})",
+            c.path.display(),
+            if c.dynamic { "dynamic" } else { "quasi-static" },
+            c.reason
+        );
+    }
+    if split.quasi_static.is_empty() {
+        bail!(
+            "{}: no quasi-static files: the Preisach masses need quasi-static data (a FORC sweep \
+             from `maglab excite`, slow loops); see docs/identification.md",
+            args.dataset.display()
+        );
+    }
+    let dataset = split.quasi_static_dataset();
+    let mut id = identify(&dataset, &base, &base_name, &options)?;
     for f in &id.files {
         println!(
             "{}: {} samples, negative displacement clipped {}, above stroke {}, sign changes {}, \
@@ -116,11 +176,25 @@ pub fn run(args: &Args) -> Result<()> {
             println!("{label}: {n} samples outside the grid (memory saturated there)");
         }
     }
-    println!(
-        "NOT identified: R_eddy = {} Ω, ξ = {}, f0 = {} Hz are copied from {base_name} \
-         (identification of these needs the dynamic model; see provenance.not_identified)",
-        base.actuator.eddy_resistance_ohm, base.actuator.damping_ratio, base.actuator.resonance_hz
-    );
+    let dynamic = if split.dynamic.is_empty() {
+        println!(
+            "NOT identified: R_eddy = {} Ω, ξ = {}, f0 = {} Hz are copied from {base_name}: the \
+             dataset has no dynamic files (sinusoidal currents >= {} Hz); see \
+             provenance.not_identified",
+            base.actuator.eddy_resistance_ohm,
+            base.actuator.damping_ratio,
+            base.actuator.resonance_hz,
+            args.dynamic_min_hz
+        );
+        None
+    } else {
+        let fit = identify_dynamics(args, &split, &id.params)?;
+        record::record(&mut id.params, &fit, &split);
+        id.params
+            .validate("identified parameters")
+            .context("the identified parameters do not validate")?;
+        Some(fit)
+    };
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;
     }
@@ -176,7 +250,240 @@ pub fn run(args: &Args) -> Result<()> {
     for p in figure.write(&args.plot_dir.join("identified-loops"))? {
         println!("wrote {}", p.display());
     }
+    if let Some(fit) = &dynamic {
+        for p in figure5(fit).write(&args.plot_dir.join("identified-figure5"))? {
+            println!("wrote {}", p.display());
+        }
+        for p in
+            dynamic_loops(fit, &split).write(&args.plot_dir.join("identified-dynamic-loops"))?
+        {
+            println!("wrote {}", p.display());
+        }
+    }
     Ok(())
+}
+
+/// Runs the dynamic identification with a progress bar and prints both methods side by side.
+fn identify_dynamics(
+    args: &Args,
+    split: &SplitDataset,
+    params: &actuator_params::ActuatorParams,
+) -> Result<DynamicFit> {
+    let options = DynamicOptions {
+        simulation: SimulationOptions {
+            start: Start::parse(&args.dynamic_start).map_err(|e| anyhow!(e))?,
+            current: CurrentBetweenSamples::parse(&args.current_between_samples)
+                .map_err(|e| anyhow!(e))?,
+            max_substep_s: args.max_substep_s,
+        },
+        resistivity_ohm_m: args.resistivity_ohm_m,
+        phase_lag_resonance_hz: args.resonance_hz,
+        waveform_fit: !args.no_waveform_fit,
+        ..DynamicOptions::default()
+    };
+    if !(options.simulation.max_substep_s > 0.0 && options.resistivity_ohm_m > 0.0) {
+        bail!("--max-substep-s and --resistivity-ohm-m must be > 0");
+    }
+    let bar = ProgressBar::new(0).with_style(
+        ProgressStyle::with_template("{msg:28} [{bar:40}] {pos}/{len} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let stage = std::sync::Mutex::new(String::new());
+    let progress = |name: &str, done: usize, total: usize| {
+        if let Ok(mut current) = stage.lock() {
+            if *current != name {
+                *current = name.to_string();
+                bar.set_message(name.to_string());
+                bar.set_position(0);
+            }
+            bar.set_length(if total == 0 {
+                done as u64
+            } else {
+                total as u64
+            });
+            bar.set_position(done as u64);
+        }
+    };
+    let fit = fit_eddy_and_damping(&split.dynamic, params, &options, &progress)?;
+    bar.finish_and_clear();
+    let pl = &fit.phase_lag;
+    println!(
+        "R̄ = 8πρN²/l_m = {:.1} Ω (ρ = {:e} Ω·m); grid: {} geometric points from {:.3} Ω, then {} \
+         points in [{:.2}, {:.2}] Ω",
+        pl.r_bar_ohm,
+        options.resistivity_ohm_m,
+        pl.coarse.len(),
+        pl.coarse[0].eddy_resistance_ohm,
+        pl.fine.len(),
+        pl.fine.first().map_or(f64::NAN, |c| c.eddy_resistance_ohm),
+        pl.fine.last().map_or(f64::NAN, |c| c.eddy_resistance_ohm)
+    );
+    println!(
+        "{:>10} {:>10} {:>12} {:>12} {:>14}",
+        "f (Hz)", "lag (°)", "ξ_k (PL)", "NRMSE PL", "NRMSE WF"
+    );
+    for (k, e) in fit.experiments.iter().enumerate() {
+        println!(
+            "{:>10.3} {:>10.3} {:>12.4} {:>11.3} % {:>13}",
+            e.frequency_hz,
+            e.measured_lag_deg,
+            pl.chosen.damping_ratios[k],
+            100.0 * e.nrmse_phase_lag,
+            e.nrmse_waveform
+                .map_or("—".into(), |v| format!("{:.3} %", 100.0 * v))
+        );
+    }
+    println!(
+        "{:<34} {:>12} {:>10} {:>10} {:>12}",
+        "method", "R_eddy (Ω)", "ξ", "f0 (Hz)", "RMS NRMSE"
+    );
+    let rms = |v: &mut dyn Iterator<Item = f64>| {
+        let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+        (s / n.max(1) as f64).sqrt()
+    };
+    println!(
+        "{:<34} {:>12.2} {:>10.4} {:>10.1} {:>10.3} %",
+        "phase-lag scheme (f0 assumed)",
+        fit.phase_lag_params.eddy_resistance_ohm,
+        fit.phase_lag_params.damping_ratio,
+        fit.phase_lag_params.resonance_hz,
+        100.0 * rms(&mut fit.experiments.iter().map(|e| e.nrmse_phase_lag))
+    );
+    if let Some(w) = &fit.waveform {
+        println!(
+            "{:<34} {:>12.2} {:>10.4} {:>10.1} {:>10.3} %   ({} model runs, {})",
+            "waveform fit (Levenberg-Marquardt)",
+            w.params.eddy_resistance_ohm,
+            w.params.damping_ratio,
+            w.params.resonance_hz,
+            100.0 * w.rms_nrmse,
+            w.evaluations,
+            w.termination
+        );
+    }
+    println!(
+        "(paper's literal criterion, least variance of ξ_k: R_eddy = {:.2} Ω; least std/mean: {:.2} Ω; \
+         phase misfit of the chosen candidate {:.3}°)",
+        pl.least_variance_ohm,
+        pl.least_cv_ohm,
+        pl.chosen.phase_misfit_rad.to_degrees()
+    );
+    Ok(fit)
+}
+
+/// The Figure 5 chart: `ξ_k` against frequency for candidates around the chosen `R_eddy`.
+fn figure5(fit: &DynamicFit) -> Figure {
+    let pl = &fit.phase_lag;
+    let freqs: Vec<f64> = fit.experiments.iter().map(|e| e.frequency_hz).collect();
+    let mut panel = Panel::new(
+        "damping ratio from the phase lag of (5), per candidate R_eddy (Figure 5)",
+        "frequency, Hz",
+        "ξ",
+    );
+    let best = pl
+        .coarse
+        .iter()
+        .enumerate()
+        .min_by(|a, b| {
+            (a.1.eddy_resistance_ohm - pl.chosen.eddy_resistance_ohm)
+                .abs()
+                .total_cmp(&(b.1.eddy_resistance_ohm - pl.chosen.eddy_resistance_ohm).abs())
+        })
+        .map_or(0, |(k, _)| k);
+    let lo = best.saturating_sub(3);
+    let hi = (best + 3).min(pl.coarse.len() - 1);
+    for (colour, c) in (1..).zip(&pl.coarse[lo..=hi]) {
+        panel.series.push(Series {
+            label: Some(format!("R = {:.1} Ω", c.eddy_resistance_ohm)),
+            points: freqs
+                .iter()
+                .copied()
+                .zip(c.damping_ratios.iter().copied())
+                .collect(),
+            color: PALETTE[colour % PALETTE.len()],
+            width: 2,
+        });
+    }
+    panel.series.push(Series {
+        label: Some(format!(
+            "chosen R = {:.1} Ω, ξ = {:.3}",
+            pl.chosen.eddy_resistance_ohm, pl.chosen.weighted_mean
+        )),
+        points: freqs
+            .iter()
+            .copied()
+            .zip(pl.chosen.damping_ratios.iter().copied())
+            .collect(),
+        color: PALETTE[0],
+        width: 4,
+    });
+    let ys = panel
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.1));
+    let (y0, y1) = ys
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    let m = pl.chosen.weighted_mean;
+    // Keep the chart readable: at most ±100 % of the chosen ξ around it.
+    panel.y_range = Some((y0.max(0.0).min(m * 0.5), y1.min(m * 2.0).max(m * 1.5)));
+    panel.legend = plotters::chart::SeriesLabelPosition::UpperRight;
+    Figure {
+        panels: vec![panel],
+        rows: 1,
+        cols: 1,
+        size_px: (1000, 700),
+    }
+}
+
+/// Measured vs predicted displacement against current over each experiment's steady state.
+fn dynamic_loops(fit: &DynamicFit, split: &SplitDataset) -> Figure {
+    let mut panels = Vec::new();
+    for (e, d) in fit.experiments.iter().zip(&split.dynamic) {
+        let m = &d.measurement;
+        let pts = |y: &[f64]| -> Vec<(f64, f64)> {
+            e.window
+                .clone()
+                .map(|k| (m.current_a[k], y[k] * 1e6))
+                .collect()
+        };
+        let mut panel = Panel::new(
+            &format!("{:.1} Hz", e.frequency_hz),
+            "current, A",
+            "displacement, µm",
+        );
+        panel.series.push(Series {
+            label: Some("measured".into()),
+            points: pts(&m.displacement_m),
+            color: PALETTE[7],
+            width: 1,
+        });
+        panel.series.push(Series {
+            label: Some(format!("phase-lag ({:.2} %)", 100.0 * e.nrmse_phase_lag)),
+            points: pts(&e.predicted_phase_lag_m),
+            color: PALETTE[2],
+            width: 2,
+        });
+        if let (Some(y), Some(n)) = (&e.predicted_waveform_m, e.nrmse_waveform) {
+            panel.series.push(Series {
+                label: Some(format!("waveform fit ({:.2} %)", 100.0 * n)),
+                points: pts(y),
+                color: PALETTE[1],
+                width: 2,
+            });
+        }
+        panels.push(panel);
+    }
+    let cols = 3.min(panels.len()).max(1);
+    let rows = panels.len().div_ceil(cols);
+    Figure {
+        panels,
+        rows,
+        cols,
+        size_px: (500 * cols as u32, 400 * rows as u32),
+    }
 }
 
 fn pct(v: Option<f64>) -> String {

@@ -10,12 +10,15 @@
 //! Exit codes: 0 success, 1 any other error, 2 an invalid parameter file (the message names the
 //! file, the field and the reason).
 
+mod cmd_diagnose;
 mod cmd_excite;
 mod cmd_identify;
 mod cmd_loops;
 mod cmd_params;
 mod cmd_preisach_fit;
+mod cmd_rig;
 mod cmd_simulate;
+mod cmd_track;
 mod params_io;
 mod plot;
 mod plot_preisach;
@@ -39,6 +42,9 @@ enum Command {
     /// Run the dynamic model (4)-(5) or the static model (6) on sines, a current file or a Van der
     /// Pol-shaped current; write CSVs, loops.png (displacement vs current) and traces.png.
     Simulate(cmd_simulate::Args),
+    /// Run the dynamic and the static inverse controller against the reference plant on the
+    /// Van der Pol trajectory; print RMS/max errors and write the paper's Figures 7/8 and a CSV.
+    Track(cmd_track::Args),
     /// Write the default parameter file or check one.
     Params(cmd_params::Args),
     /// Write a quasi-static identification current (first-order reversal curves reaching every
@@ -50,6 +56,10 @@ enum Command {
     PreisachFit(cmd_preisach_fit::FitArgs),
     /// Predict with a fitted Preisach model on a CSV file and report the NRMSE.
     PreisachPredict(cmd_preisach_fit::PredictArgs),
+    /// Virtual test rig: datasets from the reference plant with unmodelled effects switched on.
+    Rig(cmd_rig::Args),
+    /// Where a dataset disagrees with the nominal model and which unmodelled effect explains it.
+    Diagnose(cmd_diagnose::Args),
 }
 
 /// Exit code for an invalid parameter file.
@@ -60,11 +70,14 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Loops(args) => cmd_loops::run(args),
         Command::Simulate(args) => cmd_simulate::run(args),
+        Command::Track(args) => cmd_track::run(args),
         Command::Params(args) => cmd_params::run(args),
         Command::Excite(args) => cmd_excite::run(args),
         Command::Identify(args) => cmd_identify::run(args),
         Command::PreisachFit(args) => cmd_preisach_fit::run_fit(args),
         Command::PreisachPredict(args) => cmd_preisach_fit::run_predict(args),
+        Command::Rig(args) => cmd_rig::run(args),
+        Command::Diagnose(args) => cmd_diagnose::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,12 +8,11 @@
 //! `build.rs` does for the firmware.
 
 use actuator_params::ActuatorParams;
-use anyhow::{anyhow, Context, Result};
+use anyhow::{Context, Result};
 use magctl::params::{
-    Actuator, ActuatorParameters, Control, PreisachGrid, Trajectory, BAKED_PARAMETERS,
-    BAKED_PARAMETERS_PROVENANCE, BAKED_PARAMETERS_SOURCE,
+    ActuatorParameters, BAKED_PARAMETERS, BAKED_PARAMETERS_PROVENANCE, BAKED_PARAMETERS_SOURCE,
 };
-use magctl::preisach::{PreisachMeasure, CELL_COUNT};
+use magctl::preisach::PreisachMeasure;
 use std::path::Path;
 
 /// Parameters in the core's f32 form, with where they came from.
@@ -57,49 +56,7 @@ pub fn load(path: Option<&Path>) -> Result<LoadedParams> {
 /// Converts a validated parameter file to the core's f32 types (the same narrowing `build.rs`
 /// applies when it bakes a file).
 pub fn to_core(file: &ActuatorParams) -> Result<ActuatorParameters> {
-    let a = &file.actuator;
-    let p = &file.preisach;
-    let c = &file.control;
-    let t = &file.trajectory;
-    if p.weights_a_per_m.len() != CELL_COUNT {
-        return Err(anyhow!(
-            "field `preisach.weights_a_per_m`: the core needs {CELL_COUNT} weights, the file has {}",
-            p.weights_a_per_m.len()
-        ));
-    }
-    let mut weights_a_per_m = [0.0f32; CELL_COUNT];
-    for (dst, &src) in weights_a_per_m.iter_mut().zip(&p.weights_a_per_m) {
-        *dst = src as f32;
-    }
-    Ok(ActuatorParameters {
-        actuator: Actuator {
-            coil_turns: a.coil_turns as f32,
-            rod_area_m2: a.rod_area_m2 as f32,
-            rod_length_m: a.rod_length_m as f32,
-            coil_factor_per_m: a.coil_factor_per_m as f32,
-            saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m as f32,
-            saturation_magnetostriction: a.saturation_magnetostriction as f32,
-            resonance_hz: a.resonance_hz as f32,
-            eddy_resistance_ohm: a.eddy_resistance_ohm as f32,
-            damping_ratio: a.damping_ratio as f32,
-        },
-        preisach: PreisachGrid {
-            h_min_a_per_m: p.h_min_a_per_m as f32,
-            h_max_a_per_m: p.h_max_a_per_m as f32,
-            weights_a_per_m,
-        },
-        control: Control {
-            sample_rate_hz: c.sample_rate_hz as f32,
-            current_limit_a: c.current_limit_a as f32,
-            current_slew_limit_a_per_s: c.current_slew_limit_a_per_s as f32,
-        },
-        trajectory: Trajectory {
-            van_der_pol_mu: t.van_der_pol_mu as f32,
-            frequency_scale_hz: t.frequency_scale_hz as f32,
-            displacement_min_m: t.displacement_min_m as f32,
-            displacement_max_m: t.displacement_max_m as f32,
-        },
-    })
+    Ok(ActuatorParameters::from_file(file, "parameter file")?)
 }
 
 #[cfg(test)]

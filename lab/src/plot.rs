@@ -210,8 +210,9 @@ fn padded(values: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// Registers the embedded DejaVu Sans as plotters' "sans-serif" family (once per process).
-fn register_font() -> Result<()> {
+/// Registers the embedded DejaVu Sans as plotters' "sans-serif" family (once per process). Every
+/// figure module calls it before drawing text.
+pub fn register_font() -> Result<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         let normal = plotters::style::register_font(

@@ -2,24 +2,11 @@
 //! of cell masses on the Preisach plane (`β` horizontal, `α` vertical, density = mass / cell area,
 //! unexcited cells outlined), written as PNG and SVG like every `maglab` figure.
 
+use crate::plot::register_font;
 use anyhow::{anyhow, Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
-
-fn register_font() -> Result<()> {
-    static REGISTERED: OnceLock<bool> = OnceLock::new();
-    let ok = *REGISTERED.get_or_init(|| {
-        plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
-            .is_ok()
-    });
-    if ok {
-        Ok(())
-    } else {
-        Err(anyhow!("the embedded DejaVu Sans font could not be parsed"))
-    }
-}
 
 /// Heat map of the masses `weights` (alpha-major) on the grid `[h_min, h_max]`.
 pub struct WeightMap<'a> {

@@ -61,7 +61,7 @@ pub fn paper_defaults() -> ActuatorParams {
         },
         trajectory: Trajectory {
             van_der_pol_mu: 1.0,
-            frequency_scale_hz: 50.0,
+            frequency_scale_hz: 100.0,
             displacement_min_m: 10.0e-6,
             displacement_max_m: 40.0e-6,
         },

@@ -37,9 +37,13 @@
 //! reference plant; the trapezoid leaves less than the reference's own relay-discretization error,
 //! see `host-tests/tests/tracking.rs`.)
 //!
-//! The magnetoelastic inversion (step 1) is exact at the sample times; between them `M²` follows
-//! the plant's own path instead of `ū`, an error of second order in `h` in the displacement
-//! (the mean of `M²` over the period matches the mean of `ū` to `O(h²)`).
+//! The magnetoelastic inversion (step 1) is exact at the sample times; between them the plant's
+//! `M(t)` follows its own path under the held current rather than `M̄(t)`. Measured against the
+//! reference plant on the default trajectory (100 Hz scale) the remaining RMS error does not move
+//! when the control rate is doubled or quadrupled (0.077 % / 0.079 % / 0.078 % of the peak-to-peak
+//! at 10 / 20 / 40 kHz with 128 relays per cell side) while it shrinks with the reference's relay
+//! subdivision (0.68 / 0.41 / 0.18 / 0.077 % at 16 / 32 / 64 / 128): what is left is the
+//! reference's own discretization, not this inverse's.
 
 use super::inverter::PreisachInverter;
 use super::{InverseMemory, RawCommand};

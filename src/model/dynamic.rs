@@ -41,6 +41,20 @@ pub struct ModelState<const N: usize = DEFAULT_CAPACITY> {
     pub faults: ModelFaults,
 }
 
+impl<const N: usize> ModelState<N> {
+    /// Takes `current_a` as the current held over the coming step if it is finite; otherwise
+    /// keeps the last valid one and counts the fault. Returns whether it was accepted.
+    pub(crate) fn accept_current(&mut self, current_a: f32) -> bool {
+        if current_a.is_finite() {
+            self.current_a = current_a;
+            true
+        } else {
+            self.faults.non_finite_current = self.faults.non_finite_current.saturating_add(1);
+            false
+        }
+    }
+}
+
 /// What one step produced.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelOutput {
@@ -133,12 +147,7 @@ impl<'m> DynamicModel<'m> {
     ///
     /// Cost: one Preisach monotone solve plus ~20 flops. Never panics, never allocates.
     pub fn step<const N: usize>(&self, state: &mut ModelState<N>, current_a: f32) -> ModelOutput {
-        let current_rejected = !current_a.is_finite();
-        if current_rejected {
-            state.faults.non_finite_current = state.faults.non_finite_current.saturating_add(1);
-        } else {
-            state.current_a = current_a;
-        }
+        let current_rejected = !state.accept_current(current_a);
         let u_start = self.mechanics.static_displacement_m(state.m_a_per_m);
         match self.eddy.step(
             self.measure,

@@ -27,12 +27,7 @@ impl<'m> StaticModel<'m> {
     /// Applies `current_a`: `H = c0 I`, `M = Γ(H)`, `y = l_m λ_s M² / M_s²`, velocity 0. A
     /// non-finite current is rejected (last valid current held, counted).
     pub fn step<const N: usize>(&self, state: &mut ModelState<N>, current_a: f32) -> ModelOutput {
-        let current_rejected = !current_a.is_finite();
-        if current_rejected {
-            state.faults.non_finite_current = state.faults.non_finite_current.saturating_add(1);
-        } else {
-            state.current_a = current_a;
-        }
+        let current_rejected = !state.accept_current(current_a);
         let h = self.coil_factor_per_m * state.current_a;
         if let Ok(m) = self.measure.apply(&mut state.preisach, h) {
             state.h_a_per_m = h;

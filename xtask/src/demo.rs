@@ -2,7 +2,10 @@
 //!
 //! Runs `setup`, then `maglab loops` (release build) with the baked parameters, which prints the
 //! loop table and writes `out/loops.png|svg` and `out/displacement.png|svg`. Extra arguments are
-//! passed to `maglab loops` (e.g. `cargo xtask demo --params my.json`).
+//! passed to `maglab loops` (e.g. `cargo xtask demo --params my.json`). Then the QEMU firmware
+//! run (`cargo xtask qemu`: `out/qemu/`) and the paper's Figures 7/8 from its captured current
+//! commands (`maglab track --capture out/qemu/capture.csv`: `out/track/`). Both use the parameters
+//! baked into the build (the firmware cannot read a file); `--params` only affects `maglab loops`.
 
 use crate::setup;
 use crate::util::{run_checked, Ctx};
@@ -33,12 +36,36 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
     cmd.args(args);
     run_checked(cmd)?;
 
-    // HOOK (issue 5): the QEMU firmware run and its tracking plots go here, e.g.
-    //     crate::qemu::demo(ctx)?;
+    println!(
+        "\n==> Firmware under QEMU: inverse control in the timer interrupt (cargo xtask qemu)"
+    );
+    crate::qemu::check(ctx)?;
+    println!("\n==> Figures 7/8 from the QEMU run's current commands (maglab track --capture)");
+    let cmd = ctx.cargo(&[
+        "run",
+        "--release",
+        "--quiet",
+        "-p",
+        "maglab",
+        "--",
+        "track",
+        "--capture",
+        "out/qemu/capture.csv",
+        "--out",
+        "out/track",
+    ]);
+    run_checked(cmd)?;
 
     let out = ctx.root.join(OUT_DIR);
     println!("\ndemo outputs:");
-    for name in ["loops.png", "displacement.png"] {
+    for name in [
+        "loops.png",
+        "displacement.png",
+        "qemu/capture.csv",
+        "qemu/tracking.csv",
+        "track/fig7_dynamic.png",
+        "track/fig8_static.png",
+    ] {
         let path = out.join(name);
         if !path.is_file() {
             bail!("{} was not written", path.display());

@@ -6,7 +6,9 @@
 //!   and clippy, `qemu-system-arm`);
 //! * `test` ([`test`]): setup, then fmt, clippy, the workspace tests and the no_std build of the
 //!   core, the Markdown link check ([`doclinks`]), with a summary whose last line is `N passed, M failed`;
-//! * `demo` ([`demo`]): setup, then the host demo (`maglab loops`) into `out/`.
+//! * `demo` ([`demo`]): setup, then the host demo (`maglab loops`), the QEMU firmware run and the
+//!   tracking figures (`maglab track`) into `out/`;
+//! * `qemu` ([`qemu`]) and `nucleo` ([`nucleo`]): the firmware checks (also steps of `test`).
 //!
 //! # Adding a command
 //! 1. Write `src/<name>.rs` with `pub fn run(ctx: &Ctx, args: &[String]) -> anyhow::Result<()>`
@@ -17,6 +19,7 @@
 
 mod demo;
 mod doclinks;
+mod nucleo;
 mod qemu;
 mod setup;
 mod test;
@@ -45,7 +48,7 @@ const COMMANDS: &[Command] = &[
     },
     Command {
         name: "test",
-        about: "setup, then fmt, clippy -D warnings, workspace tests, no_std build, doc links [--keep-going]",
+        about: "setup, then fmt, clippy -D warnings, workspace tests, no_std build, doc links, QEMU run, NUCLEO build [--keep-going]",
         run: test::run,
     },
     Command {
@@ -54,8 +57,13 @@ const COMMANDS: &[Command] = &[
         run: qemu::run,
     },
     Command {
+        name: "nucleo",
+        about: "build the NUCLEO-F446RE firmware, report its sizes, prove it panic-free at link time",
+        run: nucleo::run,
+    },
+    Command {
         name: "demo",
-        about: "setup, then `maglab loops` (release) writing out/loops.png and out/displacement.png",
+        about: "setup, then `maglab loops` (out/loops.png, out/displacement.png), the QEMU run (out/qemu/) and Figures 7/8 (out/track/)",
         run: demo::run,
     },
 ];

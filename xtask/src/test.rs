@@ -89,13 +89,16 @@ pub fn steps() -> Vec<Step> {
             purpose: "relative links and figures in the Markdown files exist",
             action: Action::Func(crate::doclinks::check),
         },
-        // HOOK (issue 5): the QEMU run of the firmware goes here, e.g.
-        //     Step {
-        //         name: "qemu",
-        //         purpose: "firmware under qemu-system-arm: tracking error and instruction counts",
-        //         action: Action::Func(crate::qemu::check), // fn(&Ctx) -> anyhow::Result<()>
-        //     },
-        // (with `mod qemu;` and a `qemu` entry in COMMANDS in main.rs).
+        Step {
+            name: "qemu",
+            purpose: "firmware under qemu-system-arm: host replay, tracking error vs the reference plant, instruction counts, no-panic proof",
+            action: Action::Func(|ctx| crate::qemu::check(ctx).map(|_| ())),
+        },
+        Step {
+            name: "nucleo",
+            purpose: "NUCLEO-F446RE firmware builds; its no-panic proof holds",
+            action: Action::Func(|ctx| crate::nucleo::check(ctx).map(|_| ())),
+        },
     ]
 }
 

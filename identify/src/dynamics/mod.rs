@@ -7,6 +7,7 @@
 //!   spread of `ξ` across frequencies) — the Figure 5 data.
 //! * [`waveform`]: the direct nonlinear least-squares fit of `(R_eddy, ξ, f0)` to the measured
 //!   waveforms, started from the phase-lag result.
+//! * [`record`]: the identified values and their provenance in the parameter file.
 //! * [`fit_eddy_and_damping`]: both, side by side — the library entry point (`maglab identify`,
 //!   `maglab diagnose`).
 //!
@@ -21,6 +22,7 @@
 //! Ω·m); with the paper's `N_m = 1300`, `l_m = 5.13 cm`: `R̄ ≈ 497 Ω`.
 
 pub mod phase_lag;
+pub mod record;
 pub mod simulate;
 pub mod waveform;
 
@@ -307,14 +309,14 @@ pub fn fit_eddy_and_damping(
     progress: &Progress<'_>,
 ) -> Result<DynamicFit, DynamicError> {
     let prepared = prepare(experiments, base, options)?;
-    let measure = core_measure(base);
+    let measure = core_measure(base)?;
     let resonance_hz = options
         .phase_lag_resonance_hz
         .unwrap_or(base.actuator.resonance_hz);
     let phase_lag = phase_lag::phase_lag_scheme(&measure, &prepared, resonance_hz, progress)?;
     let phase_lag_params = DynamicParams {
         eddy_resistance_ohm: phase_lag.chosen.eddy_resistance_ohm,
-        damping_ratio: phase_lag.chosen.mean,
+        damping_ratio: phase_lag.chosen.weighted_mean,
         resonance_hz,
     };
     let waveform = if options.waveform_fit {

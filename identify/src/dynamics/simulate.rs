@@ -24,8 +24,8 @@
 use crate::data::Measurement;
 use actuator_params::ActuatorParams;
 use magctl::model::DynamicModel;
-use magctl::params::Actuator;
-use magctl::preisach::{PreisachMeasure, PreisachState, DEFAULT_CAPACITY, LEVELS};
+use magctl::params::{Actuator, PreisachGrid};
+use magctl::preisach::{PreisachMeasure, PreisachState, DEFAULT_CAPACITY};
 
 /// Initial Preisach memory of every dynamic experiment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -137,31 +137,19 @@ impl DynamicParams {
 
 /// The core's f32 actuator constants of `base` with the dynamic parameters replaced.
 pub fn core_actuator(base: &ActuatorParams, p: &DynamicParams) -> Actuator {
-    let a = &base.actuator;
     Actuator {
-        coil_turns: a.coil_turns as f32,
-        rod_area_m2: a.rod_area_m2 as f32,
-        rod_length_m: a.rod_length_m as f32,
-        coil_factor_per_m: a.coil_factor_per_m as f32,
-        saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m as f32,
-        saturation_magnetostriction: a.saturation_magnetostriction as f32,
         resonance_hz: p.resonance_hz as f32,
         eddy_resistance_ohm: p.eddy_resistance_ohm as f32,
         damping_ratio: p.damping_ratio as f32,
+        ..Actuator::from_file(&base.actuator)
     }
 }
 
-/// The core's Preisach coefficients of `params`.
-pub fn core_measure(params: &ActuatorParams) -> PreisachMeasure {
-    let mut w = [0f32; LEVELS * (LEVELS + 1) / 2];
-    for (dst, src) in w.iter_mut().zip(&params.preisach.weights_a_per_m) {
-        *dst = *src as f32;
-    }
-    PreisachMeasure::new(
-        &w,
-        params.preisach.h_min_a_per_m as f32,
-        params.preisach.h_max_a_per_m as f32,
-    )
+/// The core's Preisach coefficients of `params` (the narrowing `build.rs` applies).
+pub fn core_measure(params: &ActuatorParams) -> Result<PreisachMeasure, super::DynamicError> {
+    PreisachGrid::from_file(&params.preisach, "base parameters")
+        .map(|grid| grid.measure())
+        .map_err(|e| super::DynamicError(e.to_string()))
 }
 
 /// How to simulate an experiment.

@@ -58,11 +58,15 @@ struct Problem<'a> {
     progress: &'a Progress<'a>,
 }
 
-fn params_of(x: &Vector3<f64>) -> DynamicParams {
+/// `x` → parameters, each clamped to a physical box (`R_eddy ∈ [R̄/10⁴, 10 R̄]`,
+/// `ξ ∈ [10⁻³, 10³]`, `f0 ∈ [1 Hz, 10⁶ Hz]`): a trial step of Levenberg-Marquardt outside the box
+/// is evaluated at the box's edge, does not reduce the cost, and is rejected (the trust region
+/// shrinks) instead of running the model with absurd constants.
+fn params_of(x: &Vector3<f64>, r_bar_ohm: f64) -> DynamicParams {
     DynamicParams {
-        eddy_resistance_ohm: x[0].exp(),
-        damping_ratio: x[1].exp(),
-        resonance_hz: x[2].exp(),
+        eddy_resistance_ohm: x[0].exp().clamp(r_bar_ohm * 1e-4, r_bar_ohm * 10.0),
+        damping_ratio: x[1].exp().clamp(1e-3, 1e3),
+        resonance_hz: x[2].exp().clamp(1.0, 1e6),
     }
 }
 
@@ -108,7 +112,11 @@ fn per_experiment(prepared: &Prepared<'_>, r: &DVector<f64>) -> Vec<f64> {
 
 impl Problem<'_> {
     fn eval(&self, x: &Vector3<f64>) -> Option<DVector<f64>> {
-        let r = residuals(self.measure, self.prepared, &params_of(x));
+        let r = residuals(
+            self.measure,
+            self.prepared,
+            &params_of(x, self.prepared.r_bar_ohm),
+        );
         let d = self.evaluations.fetch_add(1, Ordering::Relaxed) + 1;
         (self.progress)("waveform fit (model runs)", d, 0);
         r
@@ -192,12 +200,14 @@ pub fn waveform_fit(
         .with_xtol(1e-7)
         .with_gtol(1e-10)
         .with_patience(prepared.options.max_iterations)
+        // First step at most ~e^{±1} per parameter: the start is the phase-lag result.
+        .with_stepbound(1.0)
         .minimize(problem);
     let r = problem.residuals.clone().ok_or_else(|| {
         super::DynamicError(format!(
             "waveform fit failed ({:?}) at {:?}",
             report.termination,
-            params_of(&problem.x)
+            params_of(&problem.x, prepared.r_bar_ohm)
         ))
     })?;
     let nrmse = per_experiment(prepared, &r);
@@ -214,7 +224,7 @@ pub fn waveform_fit(
         })
         .unwrap_or([f64::NAN; 3]);
     Ok(WaveformResult {
-        params: params_of(&problem.x),
+        params: params_of(&problem.x, prepared.r_bar_ohm),
         start,
         nrmse,
         nrmse_start,

@@ -1,0 +1,428 @@
+//! "Where": the nominal residual (measured − nominal model) broken down per experiment and per
+//! frequency band — fundamental amplitude ratio and phase error, DC level, harmonics, ascending
+//! vs descending branch, near-reversal vs mid-branch, early vs late in the record — and the
+//! plain-language summary of it.
+//!
+//! **Gap onset.** A frequency band *disagrees* when its systematic gap (noise-corrected RMS)
+//! exceeds `max(2 σ, 1 % of the band's measured displacement range)`: twice the noise, and a
+//! percent of the motion (the size of difference a loop plot like the paper's Figure 6 shows). The
+//! gap starts at the lowest band from which every higher band disagrees.
+
+use crate::diagnosis::{systematic, ExperimentInfo};
+use crate::signal;
+use maglab_identify::data::Measurement;
+use serde::Serialize;
+
+/// Harmonic content of one order.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Harmonic {
+    /// Order (2 = twice the fundamental).
+    pub order: usize,
+    /// Measured amplitude, m.
+    pub measured_m: f64,
+    /// Nominal model amplitude, m.
+    pub model_m: f64,
+}
+
+/// One experiment's residual breakdown.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ExperimentBreakdown {
+    /// File name.
+    pub name: String,
+    /// Fundamental of the current, Hz.
+    pub fundamental_hz: f64,
+    /// Current amplitude, A.
+    pub amplitude_a: f64,
+    /// RMS residual, m.
+    pub rms_m: f64,
+    /// RMS residual / measured displacement range of this experiment.
+    pub relative_rms: f64,
+    /// Noise-corrected systematic gap, m.
+    pub systematic_m: f64,
+    /// |measured fundamental| / |model fundamental| of the displacement.
+    pub amplitude_ratio: f64,
+    /// Phase of measured minus model fundamental, degrees (negative: the measurement lags).
+    pub phase_error_deg: f64,
+    /// Mean measured minus mean model, m.
+    pub dc_error_m: f64,
+    /// Orders 2..=4.
+    pub harmonics: Vec<Harmonic>,
+    /// RMS residual on the ascending / descending current branch, m.
+    pub ascending_rms_m: f64,
+    /// See above.
+    pub descending_rms_m: f64,
+    /// RMS residual near current reversals / mid-branch, m.
+    pub near_reversal_rms_m: f64,
+    /// See above.
+    pub mid_branch_rms_m: f64,
+    /// RMS residual in the first / last third of the scored record, m.
+    pub early_rms_m: f64,
+    /// See above.
+    pub late_rms_m: f64,
+}
+
+/// One frequency band (experiments whose fundamentals are within 5 %).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct BandSummary {
+    /// Mean fundamental, Hz.
+    pub frequency_hz: f64,
+    /// Pooled RMS residual, m.
+    pub rms_m: f64,
+    /// Noise-corrected systematic gap, m.
+    pub systematic_m: f64,
+    /// Systematic gap / measured displacement range of the band.
+    pub relative_gap: f64,
+    /// Mean amplitude ratio of the fundamental.
+    pub amplitude_ratio: f64,
+    /// Mean phase error, degrees.
+    pub phase_error_deg: f64,
+    /// Disagrees by the gap-onset rule (module docs).
+    pub disagrees: bool,
+}
+
+/// The "where" section of the diagnosis.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Where {
+    /// Per experiment.
+    pub experiments: Vec<ExperimentBreakdown>,
+    /// Per frequency band, ascending frequency.
+    pub bands: Vec<BandSummary>,
+    /// Frequency from which every band disagrees, Hz (`None`: the highest band agrees).
+    pub gap_start_hz: Option<f64>,
+    /// Pooled over the dataset: ascending / descending branch RMS, m.
+    pub ascending_rms_m: f64,
+    /// See above.
+    pub descending_rms_m: f64,
+    /// Pooled near-reversal / mid-branch RMS, m.
+    pub near_reversal_rms_m: f64,
+    /// See above.
+    pub mid_branch_rms_m: f64,
+    /// Pooled early / late RMS, m.
+    pub early_rms_m: f64,
+    /// See above.
+    pub late_rms_m: f64,
+    /// Plain-language summary, one finding per sentence.
+    pub summary: Vec<String>,
+}
+
+#[derive(Default, Clone, Copy)]
+struct Acc {
+    sum: f64,
+    n: usize,
+}
+
+impl Acc {
+    fn add(&mut self, r: f64) {
+        self.sum += r * r;
+        self.n += 1;
+    }
+    fn merge(&mut self, o: Acc) {
+        self.sum += o.sum;
+        self.n += o.n;
+    }
+    fn rms(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            (self.sum / self.n as f64).sqrt()
+        }
+    }
+}
+
+fn range_of(x: &[f64]) -> f64 {
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    (hi - lo).max(0.0)
+}
+
+/// Breaks the nominal residual down (see the module docs).
+pub fn analyse(
+    measurements: &[Measurement],
+    nominal: &[Vec<f64>],
+    infos: &[ExperimentInfo],
+    noise_m: f64,
+    rate_hz: f64,
+) -> Where {
+    let mut totals = [Acc::default(); 6];
+    let mut experiments = Vec::new();
+    for ((m, y), info) in measurements.iter().zip(nominal).zip(infos) {
+        let n = m.len();
+        let s = info.settle_samples;
+        let meas = &m.displacement_m;
+        let labels = signal::branch_labels(&m.current_a);
+        let mut acc = [Acc::default(); 6];
+        let mut all = Acc::default();
+        let third = (n - s) / 3;
+        for k in s..n {
+            let r = meas[k] - y[k];
+            all.add(r);
+            acc[if labels.ascending[k] { 0 } else { 1 }].add(r);
+            acc[if labels.near_reversal[k] { 2 } else { 3 }].add(r);
+            if k < s + third {
+                acc[4].add(r);
+            } else if k >= n - third {
+                acc[5].add(r);
+            }
+        }
+        for (t, a) in totals.iter_mut().zip(acc) {
+            t.merge(a);
+        }
+        let window = signal::whole_periods(s, n, info.fundamental_hz, rate_hz);
+        let cm = signal::fourier_coefficient(meas, window.clone(), info.fundamental_hz, rate_hz);
+        let cy = signal::fourier_coefficient(y, window.clone(), info.fundamental_hz, rate_hz);
+        let ratio = cm.norm() / cy.norm().max(1e-300);
+        let phase = (cm / cy).arg().to_degrees();
+        let len = window.len() as f64;
+        let dc = window.clone().map(|k| meas[k] - y[k]).sum::<f64>() / len;
+        let harmonics = (2..=4)
+            .map(|order| {
+                let f = order as f64 * info.fundamental_hz;
+                Harmonic {
+                    order,
+                    measured_m: signal::fourier_coefficient(meas, window.clone(), f, rate_hz)
+                        .norm(),
+                    model_m: signal::fourier_coefficient(y, window.clone(), f, rate_hz).norm(),
+                }
+            })
+            .collect();
+        let rms = all.rms();
+        experiments.push(ExperimentBreakdown {
+            name: info.name.clone(),
+            fundamental_hz: info.fundamental_hz,
+            amplitude_a: info.amplitude_a,
+            rms_m: rms,
+            relative_rms: rms / range_of(&meas[s..]).max(1e-300),
+            systematic_m: systematic(rms, noise_m),
+            amplitude_ratio: ratio,
+            phase_error_deg: phase,
+            dc_error_m: dc,
+            harmonics,
+            ascending_rms_m: acc[0].rms(),
+            descending_rms_m: acc[1].rms(),
+            near_reversal_rms_m: acc[2].rms(),
+            mid_branch_rms_m: acc[3].rms(),
+            early_rms_m: acc[4].rms(),
+            late_rms_m: acc[5].rms(),
+        });
+    }
+    // Bands.
+    let groups = infos.iter().map(|i| i.frequency_group).max().unwrap_or(0) + 1;
+    let mut bands = Vec::new();
+    for g in 0..groups {
+        let members: Vec<usize> = (0..infos.len())
+            .filter(|&k| infos[k].frequency_group == g)
+            .collect();
+        if members.is_empty() {
+            continue;
+        }
+        let count = members.len() as f64;
+        let mut acc = Acc::default();
+        let mut range: f64 = 0.0;
+        for &k in &members {
+            let s = infos[k].settle_samples;
+            for (a, b) in measurements[k].displacement_m[s..]
+                .iter()
+                .zip(&nominal[k][s..])
+            {
+                acc.add(a - b);
+            }
+            range = range.max(range_of(&measurements[k].displacement_m[s..]));
+        }
+        let rms = acc.rms();
+        let sys = systematic(rms, noise_m);
+        bands.push(BandSummary {
+            frequency_hz: members
+                .iter()
+                .map(|&k| infos[k].fundamental_hz)
+                .sum::<f64>()
+                / count,
+            rms_m: rms,
+            systematic_m: sys,
+            relative_gap: sys / range.max(1e-300),
+            amplitude_ratio: members
+                .iter()
+                .map(|&k| experiments[k].amplitude_ratio)
+                .sum::<f64>()
+                / count,
+            phase_error_deg: members
+                .iter()
+                .map(|&k| experiments[k].phase_error_deg)
+                .sum::<f64>()
+                / count,
+            disagrees: sys > (2.0 * noise_m).max(0.01 * range),
+        });
+    }
+    let gap_start_hz = match bands.iter().rposition(|b| !b.disagrees) {
+        None => bands.first().map(|b| b.frequency_hz),
+        Some(last_ok) if last_ok + 1 < bands.len() => Some(bands[last_ok + 1].frequency_hz),
+        Some(_) => None,
+    };
+    let mut w = Where {
+        experiments,
+        bands,
+        gap_start_hz,
+        ascending_rms_m: totals[0].rms(),
+        descending_rms_m: totals[1].rms(),
+        near_reversal_rms_m: totals[2].rms(),
+        mid_branch_rms_m: totals[3].rms(),
+        early_rms_m: totals[4].rms(),
+        late_rms_m: totals[5].rms(),
+        summary: Vec::new(),
+    };
+    w.summary = summarize(&w, noise_m);
+    w
+}
+
+/// The plain-language findings.
+fn summarize(w: &Where, noise_m: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    let (Some(first), Some(last)) = (w.bands.first(), w.bands.last()) else {
+        return out;
+    };
+    match w.gap_start_hz {
+        Some(f) if f <= first.frequency_hz => out.push(format!(
+            "The model disagrees at every frequency tested ({:.0}-{:.0} Hz): the systematic gap is \
+             {:.1} % of the motion at {:.0} Hz and {:.1} % at {:.0} Hz.",
+            first.frequency_hz,
+            last.frequency_hz,
+            100.0 * first.relative_gap,
+            first.frequency_hz,
+            100.0 * last.relative_gap,
+            last.frequency_hz
+        )),
+        Some(f) => out.push(format!(
+            "The gap starts at about {f:.0} Hz: up to {:.0} Hz the model agrees within max(2x noise, \
+             1 % of the motion); at {:.0} Hz the systematic gap is {:.1} % of the motion.",
+            w.bands.iter().filter(|b| b.frequency_hz < f).map(|b| b.frequency_hz).fold(0.0, f64::max),
+            last.frequency_hz,
+            100.0 * last.relative_gap
+        )),
+        None => {
+            let worst = w.bands.iter().max_by(|a, b| a.relative_gap.total_cmp(&b.relative_gap));
+            let worst = worst.unwrap_or(first);
+            if worst.disagrees {
+                out.push(format!(
+                    "The model disagrees only in some bands (worst {:.0} Hz, gap {:.1} % of the \
+                     motion) and agrees at the highest frequency tested.",
+                    worst.frequency_hz,
+                    100.0 * worst.relative_gap
+                ));
+            } else {
+                out.push(format!(
+                    "The model agrees in every band within max(2x noise, 1 % of the motion) \
+                     (noise level {:.2e} m).",
+                    noise_m
+                ));
+            }
+        }
+    }
+    // Phase.
+    let phases: Vec<f64> = w.bands.iter().map(|b| b.phase_error_deg).collect();
+    let max_phase = phases
+        .iter()
+        .cloned()
+        .fold(0.0f64, |m, p| if p.abs() > m.abs() { p } else { m });
+    if max_phase.abs() >= 2.0 {
+        let at = w
+            .bands
+            .iter()
+            .find(|b| b.phase_error_deg == max_phase)
+            .map(|b| b.frequency_hz)
+            .unwrap_or(0.0);
+        out.push(format!(
+            "Phase error of the fundamental grows from {:+.1} deg at {:.0} Hz to {:+.1} deg at {:.0} Hz \
+             (largest {:+.1} deg at {:.0} Hz; negative = the measurement lags the model).",
+            first.phase_error_deg, first.frequency_hz, last.phase_error_deg, last.frequency_hz, max_phase, at
+        ));
+    } else {
+        out.push("The phase of the fundamental agrees within 2 deg in every band.".into());
+    }
+    // Amplitude.
+    let ratios: Vec<f64> = w.bands.iter().map(|b| b.amplitude_ratio).collect();
+    let (rlo, rhi) = ratios
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &r| (a.min(r), b.max(r)));
+    if rlo >= 0.98 && rhi <= 1.02 {
+        out.push("The amplitude of the fundamental agrees within 2 % in every band.".into());
+    } else {
+        out.push(format!(
+            "The amplitude of the fundamental is off: measured/model from {:.3} to {:.3} \
+             ({:.3} at {:.0} Hz, {:.3} at {:.0} Hz).",
+            rlo,
+            rhi,
+            first.amplitude_ratio,
+            first.frequency_hz,
+            last.amplitude_ratio,
+            last.frequency_hz
+        ));
+    }
+    // DC level.
+    let worst_dc = w
+        .experiments
+        .iter()
+        .map(|e| e.dc_error_m.abs() / (e.rms_m / e.relative_rms.max(1e-300)).max(1e-300))
+        .fold(0.0f64, f64::max);
+    if worst_dc < 0.01 {
+        out.push("The DC level agrees (within 1 % of the motion in every experiment).".into());
+    } else {
+        out.push(format!(
+            "The DC level is off by up to {:.1} % of the motion.",
+            100.0 * worst_dc
+        ));
+    }
+    // Harmonics.
+    let mut worst_h = (0.0f64, 0usize, 0.0f64);
+    for e in &w.experiments {
+        for h in &e.harmonics {
+            let d = (h.measured_m - h.model_m).abs();
+            if d > worst_h.0 {
+                worst_h = (d, h.order, e.fundamental_hz);
+            }
+        }
+    }
+    if worst_h.0 > 2.0 * noise_m {
+        out.push(format!(
+            "Harmonics differ: the largest difference is in harmonic {} at {:.0} Hz ({:.2e} m).",
+            worst_h.1, worst_h.2, worst_h.0
+        ));
+    }
+    // Branches.
+    let branch = |a: f64, b: f64| a / b.max(1e-300);
+    let asc = branch(w.ascending_rms_m, w.descending_rms_m);
+    if !(0.67..=1.5).contains(&asc) {
+        out.push(format!(
+            "The residual is larger on the {} branch ({:.2e} m vs {:.2e} m).",
+            if asc > 1.0 { "ascending" } else { "descending" },
+            w.ascending_rms_m.max(w.descending_rms_m),
+            w.ascending_rms_m.min(w.descending_rms_m)
+        ));
+    } else {
+        out.push("Ascending and descending branches are equally affected.".into());
+    }
+    let rev = branch(w.near_reversal_rms_m, w.mid_branch_rms_m);
+    if rev > 1.3 {
+        out.push(format!(
+            "The residual concentrates near current reversals ({:.2e} m vs {:.2e} m mid-branch).",
+            w.near_reversal_rms_m, w.mid_branch_rms_m
+        ));
+    } else if rev < 0.77 {
+        out.push(format!(
+            "The residual is largest mid-branch ({:.2e} m vs {:.2e} m near reversals).",
+            w.mid_branch_rms_m, w.near_reversal_rms_m
+        ));
+    }
+    let late = branch(w.late_rms_m, w.early_rms_m);
+    if !(0.67..=1.5).contains(&late) {
+        out.push(format!(
+            "The residual {} during each record (last third {:.2e} m vs first third {:.2e} m): \
+             a slow drift.",
+            if late > 1.0 { "grows" } else { "shrinks" },
+            w.late_rms_m,
+            w.early_rms_m
+        ));
+    } else {
+        out.push("Early and late parts of each record agree equally (no drift).".into());
+    }
+    out
+}

@@ -1,0 +1,382 @@
+//! `maglab diagnose --params P.json DATASET_DIR -o REPORT_DIR`: where a dataset disagrees with the
+//! nominal model, which unmodelled effect explains it, and how far the gap shrinks once it is
+//! added (library: `maglab-diagnose::diagnosis`). Writes `diagnosis.json`, `report.md` and the
+//! plots (`error_vs_frequency`, `loops_worst`, `ranking`, `residual_spectrum`, PNG + SVG).
+
+use crate::plot::{Figure, Panel, Series, PALETTE};
+use anyhow::{anyhow, Context, Result};
+use clap::Args as ClapArgs;
+use indicatif::{ProgressBar, ProgressStyle};
+use maglab_diagnose::diagnosis::{diagnose, DiagnoseOptions, DiagnosisRun};
+use maglab_diagnose::signal;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `maglab diagnose`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    /// Dataset folder (`*.csv` files `t_s,current_a,displacement_m`).
+    pub dataset: PathBuf,
+    /// Nominal parameter file.
+    #[arg(long, value_name = "FILE")]
+    pub params: PathBuf,
+    /// Report folder.
+    #[arg(short = 'o', long)]
+    pub out: PathBuf,
+    /// Model substeps per sample (Richardson-extrapolated with twice as many).
+    #[arg(long, default_value_t = 4)]
+    pub substeps: usize,
+    /// Nelder-Mead iterations per parameter and refined start.
+    #[arg(long, default_value_t = 30)]
+    pub iterations: u64,
+}
+
+/// Runs `maglab diagnose`.
+pub fn run(args: &Args) -> Result<()> {
+    let params =
+        actuator_params::ActuatorParams::load(&args.params).context("invalid parameter file")?;
+    let dataset = maglab_identify::data::load_dataset(&args.dataset).map_err(|e| anyhow!("{e}"))?;
+    for p in &dataset.ignored {
+        println!("note: not a measurement file, not read: {}", p.display());
+    }
+    let options = DiagnoseOptions {
+        substeps: args.substeps,
+        max_iterations: args.iterations,
+    };
+    // Work units: one per model evaluation (about 7 candidates × 150).
+    let bar = ProgressBar::new(1000).with_style(
+        ProgressStyle::with_template("diagnose {bar:40} {pos} model runs ({elapsed})")
+            .map_err(|e| anyhow!("{e}"))?,
+    );
+    let run = diagnose(&params, &dataset.measurements, &options, &|n| {
+        if bar.position() + n >= bar.length().unwrap_or(0) {
+            bar.inc_length(200);
+        }
+        bar.inc(n)
+    })
+    .map_err(|e| anyhow!(e))?;
+    bar.finish_and_clear();
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let json = serde_json::to_string_pretty(&run.diagnosis)?;
+    let json_path = args.out.join("diagnosis.json");
+    std::fs::write(&json_path, json)
+        .with_context(|| format!("cannot write {}", json_path.display()))?;
+    let plots = plots(&run, &args.out)?;
+    let md = report(&run, args, &plots);
+    let md_path = args.out.join("report.md");
+    std::fs::write(&md_path, md).with_context(|| format!("cannot write {}", md_path.display()))?;
+    let d = &run.diagnosis;
+    println!("verdict: {} — {}", d.verdict, d.verdict_reason);
+    for s in &d.where_.summary {
+        println!("  {s}");
+    }
+    println!("wrote {} and {}", json_path.display(), md_path.display());
+    Ok(())
+}
+
+fn um(v: f64) -> String {
+    format!("{:.3}", v * 1e6)
+}
+
+fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
+    let d = &run.diagnosis;
+    let mut s = String::new();
+    let _ = writeln!(s, "# Sim-to-real gap diagnosis\n");
+    let _ = writeln!(
+        s,
+        "Dataset `{}` ({} experiments), nominal parameters `{}`.\n",
+        args.dataset.display(),
+        d.experiments.len(),
+        args.params.display()
+    );
+    let _ = writeln!(s, "## Verdict: `{}`\n\n{}.\n", d.verdict, d.verdict_reason);
+    if !d.ambiguous_with.is_empty() {
+        let _ = writeln!(
+            s,
+            "Nearly as good (within 10 % of the winner's held-out error): {}.\n",
+            d.ambiguous_with.join(", ")
+        );
+    }
+    let _ = writeln!(s, "Criterion: {}.\n", d.criterion);
+    let _ = writeln!(
+        s,
+        "Noise level (white residual above 0.3 f_s): {} µm; displacement range {} µm; nominal RMS \
+         residual {} µm (systematic {} µm).\n",
+        um(d.noise_m),
+        um(d.displacement_range_m),
+        um(d.nominal_rms_m),
+        um(d.nominal_systematic_m)
+    );
+    let _ = writeln!(s, "## Where\n");
+    for line in &d.where_.summary {
+        let _ = writeln!(s, "- {line}");
+    }
+    let _ = writeln!(
+        s,
+        "\n| band (Hz) | RMS (µm) | systematic (µm) | gap / motion | amplitude ratio | phase error (deg) | disagrees |\n|---|---|---|---|---|---|---|"
+    );
+    for b in &d.where_.bands {
+        let _ = writeln!(
+            s,
+            "| {:.1} | {} | {} | {:.2} % | {:.3} | {:+.2} | {} |",
+            b.frequency_hz,
+            um(b.rms_m),
+            um(b.systematic_m),
+            100.0 * b.relative_gap,
+            b.amplitude_ratio,
+            b.phase_error_deg,
+            if b.disagrees { "yes" } else { "no" }
+        );
+    }
+    let w = &d.where_;
+    let _ = writeln!(
+        s,
+        "\nBranches (RMS, µm): ascending {}, descending {}; near reversal {}, mid-branch {}; early {}, late {}.\n",
+        um(w.ascending_rms_m),
+        um(w.descending_rms_m),
+        um(w.near_reversal_rms_m),
+        um(w.mid_branch_rms_m),
+        um(w.early_rms_m),
+        um(w.late_rms_m)
+    );
+    let _ = writeln!(s, "## Candidates (held-out experiments)\n");
+    let _ = writeln!(
+        s,
+        "| rank | effect | held-out RMS before (µm) | after (µm) | reduction | improved | significant | fitted parameters |\n|---|---|---|---|---|---|---|---|"
+    );
+    for (k, c) in d.ranking.iter().enumerate() {
+        let params: Vec<String> = c
+            .parameters
+            .iter()
+            .map(|(k, v)| format!("{k} = {v:.4}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.2}x | {}/{} | {} | {} |",
+            k + 1,
+            c.effect,
+            um(c.held_out_rms_before_m),
+            um(c.held_out_rms_after_m),
+            c.held_out_reduction,
+            c.improved_experiments,
+            c.held_out_experiments,
+            if c.significant { "yes" } else { "no" },
+            params.join(", ")
+        );
+    }
+    let held: Vec<&str> = d
+        .experiments
+        .iter()
+        .filter(|e| e.held_out)
+        .map(|e| e.name.as_str())
+        .collect();
+    let _ = writeln!(s, "\nHeld-out experiments: {}.\n", held.join(", "));
+    let _ = writeln!(s, "## Plots\n");
+    for p in plots {
+        let _ = writeln!(s, "![{p}]({p}.png)\n");
+    }
+    s
+}
+
+fn plots(run: &DiagnosisRun, out: &Path) -> Result<Vec<&'static str>> {
+    let d = &run.diagnosis;
+    let label = if d.verdict == "none" || d.verdict == "unexplained" {
+        format!(
+            "best candidate ({})",
+            d.ranking.first().map(|c| c.effect.as_str()).unwrap_or("-")
+        )
+    } else {
+        format!("with {}", d.verdict)
+    };
+    let mut names = Vec::new();
+    // 1. Error vs frequency.
+    if let Some(best) = d.ranking.first() {
+        let mut panel = Panel::new(
+            "RMS residual by frequency band",
+            "frequency (Hz)",
+            "RMS residual (µm)",
+        );
+        panel.series.push(Series {
+            label: Some("nominal".into()),
+            points: best
+                .per_band
+                .iter()
+                .map(|b| (b.frequency_hz, b.before_m * 1e6))
+                .collect(),
+            color: PALETTE[0],
+            width: 2,
+        });
+        panel.series.push(Series {
+            label: Some(label.clone()),
+            points: best
+                .per_band
+                .iter()
+                .map(|b| (b.frequency_hz, b.after_m * 1e6))
+                .collect(),
+            color: PALETTE[2],
+            width: 2,
+        });
+        panel.series.push(Series {
+            label: Some("noise level".into()),
+            points: best
+                .per_band
+                .iter()
+                .map(|b| (b.frequency_hz, d.noise_m * 1e6))
+                .collect(),
+            color: PALETTE[7],
+            width: 1,
+        });
+        for b in best.per_band.iter().filter(|b| b.held_out) {
+            panel.series.push(Series {
+                label: None,
+                points: vec![(b.frequency_hz, 0.0), (b.frequency_hz, b.before_m * 1e6)],
+                color: PALETTE[6],
+                width: 1,
+            });
+        }
+        panel.y_range = Some((
+            0.0,
+            best.per_band
+                .iter()
+                .map(|b| b.before_m.max(b.after_m))
+                .fold(d.noise_m, f64::max)
+                * 1.15e6,
+        ));
+        Figure {
+            panels: vec![panel],
+            rows: 1,
+            cols: 1,
+            size_px: (900, 520),
+        }
+        .write(&out.join("error_vs_frequency"))?;
+        names.push("error_vs_frequency");
+    }
+    // 2. Loops at the worst experiment.
+    let worst = d
+        .where_
+        .experiments
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.relative_rms.total_cmp(&b.1.relative_rms))
+        .map(|(k, _)| k)
+        .unwrap_or(0);
+    let t = &run.traces[worst];
+    let info = &d.experiments[worst];
+    let period = (t.rate_hz / info.fundamental_hz).round() as usize;
+    let n = t.current_a.len();
+    let start = n.saturating_sub(period.clamp(2, n));
+    let mut panel = Panel::new(
+        &format!("Loops at {:.0} Hz ({})", info.fundamental_hz, t.name),
+        "current (A)",
+        "displacement (µm)",
+    );
+    for (name, ys, color) in [
+        ("measured", &t.measured_m, PALETTE[0]),
+        ("nominal", &t.nominal_m, PALETTE[1]),
+        (label.as_str(), &t.augmented_m, PALETTE[2]),
+    ] {
+        panel.series.push(Series {
+            label: Some(name.to_string()),
+            points: (start..n).map(|k| (t.current_a[k], ys[k] * 1e6)).collect(),
+            color,
+            width: 2,
+        });
+    }
+    Figure {
+        panels: vec![panel],
+        rows: 1,
+        cols: 1,
+        size_px: (900, 620),
+    }
+    .write(&out.join("loops_worst"))?;
+    names.push("loops_worst");
+    // 3. Ranking.
+    let mut panel = Panel::new(
+        "Held-out RMS residual per candidate (nominal: black line)",
+        "candidate rank",
+        "held-out RMS (µm)",
+    );
+    if let Some(first) = d.ranking.first() {
+        let nominal = first.held_out_rms_before_m * 1e6;
+        panel.series.push(Series {
+            label: Some("nominal".into()),
+            points: vec![(0.4, nominal), (d.ranking.len() as f64 + 0.6, nominal)],
+            color: PALETTE[0],
+            width: 2,
+        });
+        for (k, c) in d.ranking.iter().enumerate() {
+            panel.series.push(Series {
+                label: Some(format!("{}. {}", k + 1, c.effect)),
+                points: vec![
+                    (k as f64 + 1.0, 0.0),
+                    (k as f64 + 1.0, c.held_out_rms_after_m * 1e6),
+                ],
+                color: PALETTE[1 + k % 7],
+                width: 18,
+            });
+        }
+        panel.x_range = Some((0.4, d.ranking.len() as f64 + 0.6));
+        panel.y_range = Some((
+            0.0,
+            nominal.max(
+                d.ranking
+                    .iter()
+                    .map(|c| c.held_out_rms_after_m * 1e6)
+                    .fold(0.0, f64::max),
+            ) * 1.5,
+        ));
+        panel.legend = plotters::prelude::SeriesLabelPosition::UpperRight;
+    }
+    Figure {
+        panels: vec![panel],
+        rows: 1,
+        cols: 1,
+        size_px: (900, 560),
+    }
+    .write(&out.join("ranking"))?;
+    names.push("ranking");
+    // 4. Residual spectrum of the worst experiment.
+    let s0 = info.settle_samples;
+    let resid = |ys: &[f64]| -> Vec<f64> {
+        t.measured_m[s0..]
+            .iter()
+            .zip(&ys[s0..])
+            .map(|(a, b)| a - b)
+            .collect()
+    };
+    let mut panel = Panel::new(
+        &format!(
+            "Residual spectrum at {:.0} Hz ({})",
+            info.fundamental_hz, t.name
+        ),
+        "frequency (Hz)",
+        "log10 amplitude (m)",
+    );
+    for (name, ys, color) in [
+        ("nominal", &t.nominal_m, PALETTE[1]),
+        (label.as_str(), &t.augmented_m, PALETTE[2]),
+    ] {
+        let spec = signal::amplitude_spectrum(&resid(ys), t.rate_hz, true);
+        panel.series.push(Series {
+            label: Some(name.to_string()),
+            points: spec
+                .iter()
+                .skip(1)
+                .map(|&(f, a)| (f, a.max(1e-14).log10()))
+                .collect(),
+            color,
+            width: 1,
+        });
+    }
+    panel.legend = plotters::prelude::SeriesLabelPosition::UpperRight;
+    Figure {
+        panels: vec![panel],
+        rows: 1,
+        cols: 1,
+        size_px: (900, 520),
+    }
+    .write(&out.join("residual_spectrum"))?;
+    names.push("residual_spectrum");
+    Ok(names)
+}

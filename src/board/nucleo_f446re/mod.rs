@@ -1,0 +1,26 @@
+//! NUCLEO-F446RE (STM32F446RE, Cortex-M4F with FPU, 512 KiB flash, 128 KiB SRAM).
+//!
+//! Clocks: the 8 MHz HSE input is the ST-LINK's MCO (bypass mode, as the board ships), PLL to
+//! SYSCLK = 180 MHz, APB1 = 45 MHz (TIM2 counts at 90 MHz), APB2 = 90 MHz (SPI1).
+//!
+//! Wiring of the DAC (Arduino header, SPI1): SCK = PA5 (D13, shared with the green LED LD2),
+//! MOSI = PA7 (D11), chip select = PB6 (D10, active low), MISO unused. The DAC (16-bit,
+//! DAC8551-style 24-bit frame, SPI mode 1, see `magctl::output::SpiDac`) drives the coil's
+//! transconductance amplifier (full scale `control.current_limit_a`).
+//!
+//! * [`clocks`]: HSE bypass → PLL → 180 MHz, register level.
+//! * [`spi`]: SPI1 as an embedded-hal `SpiBus` and PB6 as the chip-select `OutputPin`.
+//! * [`timer`]: TIM2 at the control rate, with overrun detection.
+//! * [`fatal`]: panic, HardFault and unexpected-interrupt handlers: they mask interrupts (the
+//!   control interrupt stops), drive the DAC to mid-scale (0 A), log over RTT and halt at a
+//!   breakpoint (probe-rs reports it and exits non-zero).
+//! * [`rtt`]: the defmt global logger over RTT (SEGGER RTT up-channel 0), panic-free.
+//!
+//! Everything is programmed at register level through the `stm32f4` PAC (not `stm32f4xx-hal`,
+//! whose clock set-up has panic paths): the whole image links with `--features panic-never`.
+
+pub mod clocks;
+pub mod fatal;
+pub mod rtt;
+pub mod spi;
+pub mod timer;
