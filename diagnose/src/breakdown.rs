@@ -3,10 +3,22 @@
 //! vs descending branch, near-reversal vs mid-branch, early vs late in the record — and the
 //! plain-language summary of it.
 //!
-//! **Gap onset.** A frequency band *disagrees* when its systematic gap (noise-corrected RMS)
-//! exceeds `max(2 σ, 1 % of the band's measured displacement range)`: twice the noise, and a
-//! percent of the motion (the size of difference a loop plot like the paper's Figure 6 shows). The
-//! gap starts at the lowest band from which every higher band disagrees.
+//! **Gap onset.** A frequency band *disagrees* when its systematic gap (noise-corrected RMS, as a
+//! fraction of the band's measured displacement range) exceeds the larger of
+//!
+//! * `2 σ / range`: twice the white-noise level, so noise alone never makes a gap;
+//! * 1 % of the motion: the size of difference a loop plot like the paper's Figure 6 shows;
+//! * when the frequencies the nominal parameters were identified on are known
+//!   (`identified_up_to_hz`, `maglab diagnose --identified-up-to-hz`): `k = 2` times the pooled
+//!   (quadratic-mean) relative gap of the bands at or below that frequency. The model is never
+//!   exact even where it was identified (one `R_eddy` cannot follow a frequency-dependent one
+//!   over a whole band), so "the gap" is where the error rises clearly above the agreement the
+//!   identification reached: twice its RMS, four times its energy. A band inside the
+//!   identification band exceeds `2×` the pooled value only when the identification itself is
+//!   very uneven (with `n` identification bands a single band can reach at most `√n ×` the pooled
+//!   value), so for `n <= 4` the identification bands count as agreeing by construction.
+//!
+//! The gap starts at the lowest band from which every higher band disagrees.
 
 use crate::diagnosis::{systematic, ExperimentInfo};
 use crate::signal;
@@ -143,6 +155,7 @@ pub fn analyse(
     infos: &[ExperimentInfo],
     noise_m: f64,
     rate_hz: f64,
+    identified_up_to_hz: Option<f64>,
 ) -> Where {
     let mut totals = [Acc::default(); 6];
     let mut experiments = Vec::new();
@@ -209,6 +222,7 @@ pub fn analyse(
     // Bands.
     let groups = infos.iter().map(|i| i.frequency_group).max().unwrap_or(0) + 1;
     let mut bands = Vec::new();
+    let mut ranges = Vec::new();
     for g in 0..groups {
         let members: Vec<usize> = (0..infos.len())
             .filter(|&k| infos[k].frequency_group == g)
@@ -250,8 +264,30 @@ pub fn analyse(
                 .map(|&k| experiments[k].phase_error_deg)
                 .sum::<f64>()
                 / count,
-            disagrees: sys > (2.0 * noise_m).max(0.01 * range),
+            disagrees: false,
         });
+        ranges.push(range);
+    }
+    // Onset rule (module docs): the baseline is the identification band's pooled relative gap.
+    let baseline = identified_up_to_hz
+        .map(|f_id| {
+            let inside: Vec<f64> = bands
+                .iter()
+                .filter(|b| b.frequency_hz <= f_id * 1.05)
+                .map(|b| b.relative_gap * b.relative_gap)
+                .collect();
+            if inside.is_empty() {
+                0.0
+            } else {
+                (inside.iter().sum::<f64>() / inside.len() as f64).sqrt()
+            }
+        })
+        .unwrap_or(0.0);
+    for (b, range) in bands.iter_mut().zip(&ranges) {
+        b.disagrees = b.relative_gap
+            > (2.0 * noise_m / range.max(1e-300))
+                .max(0.01)
+                .max(ONSET_FACTOR * baseline);
     }
     let gap_start_hz = match bands.iter().rposition(|b| !b.disagrees) {
         None => bands.first().map(|b| b.frequency_hz),
@@ -270,12 +306,15 @@ pub fn analyse(
         late_rms_m: totals[5].rms(),
         summary: Vec::new(),
     };
-    w.summary = summarize(&w, noise_m);
+    w.summary = summarize(&w, noise_m, identified_up_to_hz.map(|f| (f, baseline)));
     w
 }
 
+/// `k` of the gap-onset rule (module docs).
+pub const ONSET_FACTOR: f64 = 2.0;
+
 /// The plain-language findings.
-fn summarize(w: &Where, noise_m: f64) -> Vec<String> {
+fn summarize(w: &Where, noise_m: f64, identification: Option<(f64, f64)>) -> Vec<String> {
     let mut out = Vec::new();
     let (Some(first), Some(last)) = (w.bands.first(), w.bands.last()) else {
         return out;
@@ -293,8 +332,15 @@ fn summarize(w: &Where, noise_m: f64) -> Vec<String> {
         )),
         Some(f) => out.push(format!(
             "The gap starts at about {f:.0} Hz: up to {:.0} Hz the model agrees within max(2x noise, \
-             1 % of the motion); at {:.0} Hz the systematic gap is {:.1} % of the motion.",
+             1 % of the motion{}); at {:.0} Hz the systematic gap is {:.1} % of the motion.",
             w.bands.iter().filter(|b| b.frequency_hz < f).map(|b| b.frequency_hz).fold(0.0, f64::max),
+            match identification {
+                Some((f_id, base)) => format!(
+                    ", {ONSET_FACTOR}x the {:.2} % it reaches up to {f_id:.0} Hz where it was identified",
+                    100.0 * base
+                ),
+                None => String::new(),
+            },
             last.frequency_hz,
             100.0 * last.relative_gap
         )),

@@ -3,7 +3,7 @@
 //!
 //! The hysteresis is the core's f32 Preisach operator (`magctl::preisach::PreisachMeasure`, exact
 //! monotone solve of `a·h + Γ(h) = r`); the other states are f64. Each sample period is split into
-//! `substeps` substeps (default 4): the current is held over the sample (what the DAC does); with
+//! `substeps` substeps (default 2, see [`simulate`]): the current is held over the sample (what the DAC does); with
 //! `amplifier_bandwidth` the coil current follows it through a first-order lag, integrated
 //! exactly, and the eddy step uses its exact average over the substep.
 //!
@@ -119,7 +119,10 @@ pub struct Augmentation {
 /// The result is the Richardson extrapolation `2 y(2S) - y(S)` of runs with `S = substeps` and
 /// `2S` substeps per sample: the backward-Euler step's error is first order in the substep (checked
 /// against the rig's converged RK4 reference: halving the substep halves the error), so the
-/// combination cancels the leading term at 3S substeps' cost.
+/// combination cancels the leading term at 3S substeps' cost. Measured against the rig without
+/// effects (exact Preisach operator, RK4 with 20 substeps), 0.2/0.4 A sines on 0.5 A at
+/// 20-400 Hz: RMS difference ≤ 0.15 % of the motion with S = 1, ≤ 0.022 % with S = 2 (the
+/// default), ≤ 0.007 % with S = 4.
 pub fn simulate(
     nominal: &Nominal,
     measure: &PreisachMeasure,

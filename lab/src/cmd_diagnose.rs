@@ -24,11 +24,15 @@ pub struct Args {
     #[arg(short = 'o', long)]
     pub out: PathBuf,
     /// Model substeps per sample (Richardson-extrapolated with twice as many).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 2)]
     pub substeps: usize,
     /// Nelder-Mead iterations per parameter and refined start.
     #[arg(long, default_value_t = 30)]
     pub iterations: u64,
+    /// Highest excitation frequency the parameter file was identified on, Hz (optional): the
+    /// reported gap onset is then where the error exceeds twice the agreement reached there.
+    #[arg(long, value_name = "HZ")]
+    pub identified_up_to_hz: Option<f64>,
 }
 
 /// Runs `maglab diagnose`.
@@ -42,6 +46,7 @@ pub fn run(args: &Args) -> Result<()> {
     let options = DiagnoseOptions {
         substeps: args.substeps,
         max_iterations: args.iterations,
+        identified_up_to_hz: args.identified_up_to_hz,
     };
     // Work units: one per model evaluation (about 7 candidates × 150).
     let bar = ProgressBar::new(1000).with_style(
@@ -265,7 +270,8 @@ fn plots(run: &DiagnosisRun, out: &Path) -> Result<Vec<&'static str>> {
     let info = &d.experiments[worst];
     let period = (t.rate_hz / info.fundamental_hz).round() as usize;
     let n = t.current_a.len();
-    let start = n.saturating_sub(period.clamp(2, n));
+    // The last full period plus its closing sample, so the loop is drawn closed.
+    let start = n.saturating_sub((period + 1).clamp(2, n));
     let mut panel = Panel::new(
         &format!("Loops at {:.0} Hz ({})", info.fundamental_hz, t.name),
         "current (A)",

@@ -62,8 +62,10 @@ pub struct Args {
     /// RK4 substeps per sample of the reference plant.
     #[arg(long, default_value_t = 20)]
     pub substeps: usize,
-    /// Relays per Preisach cell side of the reference plant.
-    #[arg(long, default_value_t = 64)]
+    /// Preisach operator of the rig: 0 = the exact cell-uniform operator the parameter file
+    /// defines (default); K > 0 = the independent relay field with K relays per cell side (its
+    /// discretization error, ~1/K of a minor loop's swing, shows up as a DC-level gap).
+    #[arg(long, default_value_t = 0)]
     pub relays: usize,
     /// Also write the effects (the ground truth) to this JSON file (keep it outside the dataset).
     #[arg(long, value_name = "FILE")]

@@ -1,6 +1,6 @@
 //! `cargo xtask demo`: the project's main job, end to end on this machine.
 //!
-//! Runs `setup`, then `maglab loops` (release build) with the baked parameters, which prints the
+//! Runs `setup`, then `maglab loops` (profile `host`: release without LTO) with the baked parameters, which prints the
 //! loop table and writes `out/loops.png|svg` and `out/displacement.png|svg`. Extra arguments are
 //! passed to `maglab loops` (e.g. `cargo xtask demo --params my.json`). Then the QEMU firmware
 //! run (`cargo xtask qemu`: `out/qemu/`) and the paper's Figures 7/8 from its captured current
@@ -24,7 +24,8 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
     println!("\n==> Preisach loops of the baked operator (maglab loops)");
     let mut cmd = ctx.cargo(&[
         "run",
-        "--release",
+        "--profile",
+        "host",
         "--quiet",
         "-p",
         "maglab",
@@ -36,6 +37,22 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
     cmd.args(args);
     run_checked(cmd)?;
 
+    println!("\n==> The rate-dependent model at 1-400 Hz (maglab simulate)");
+    run_checked(ctx.cargo(&[
+        "run",
+        "--profile",
+        "host",
+        "--quiet",
+        "-p",
+        "maglab",
+        "--",
+        "simulate",
+        "--freq",
+        "1,50,100,200,400",
+        "--out",
+        "out/simulate",
+    ]))?;
+
     println!(
         "\n==> Firmware under QEMU: inverse control in the timer interrupt (cargo xtask qemu)"
     );
@@ -43,7 +60,8 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
     println!("\n==> Figures 7/8 from the QEMU run's current commands (maglab track --capture)");
     let cmd = ctx.cargo(&[
         "run",
-        "--release",
+        "--profile",
+        "host",
         "--quiet",
         "-p",
         "maglab",
@@ -61,6 +79,8 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
     for name in [
         "loops.png",
         "displacement.png",
+        "simulate/loops.png",
+        "simulate/traces.png",
         "qemu/capture.csv",
         "qemu/tracking.csv",
         "track/fig7_dynamic.png",
