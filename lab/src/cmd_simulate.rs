@@ -475,3 +475,44 @@ impl LazyProgress {
         self.bar.finish_and_clear();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(name: &str, text: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("maglab-simulate-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    fn error_of(name: &str, text: &str) -> String {
+        format!("{:#}", read_current_csv(&write(name, text), 1000.0).unwrap_err())
+    }
+
+    #[test]
+    fn current_file_is_held_between_samples_at_the_control_rate() {
+        let path = write("ok.csv", "t_s,current_a\n0,0.5\n0.0025,0.7\n0.004,0.1\n");
+        // 1 kHz: samples at 0, 1, 2, 3, 4 ms hold the last value at or before each time.
+        let currents = read_current_csv(&path, 1000.0).unwrap();
+        assert_eq!(currents, vec![0.5, 0.5, 0.5, 0.7, 0.1]);
+    }
+
+    #[test]
+    fn bad_current_files_name_file_line_and_column() {
+        let e = error_of("header.csv", "t_s,current\n0,0.5\n");
+        assert!(e.contains("header.csv: line 1: header must be `t_s,current_a`"), "{e}");
+        let e = error_of("number.csv", "t_s,current_a\n0,0.5\n0.001,abc\n");
+        assert!(e.contains("number.csv: line 3, column 2 (`current_a`): `abc` is not a number"), "{e}");
+        let e = error_of("nan.csv", "t_s,current_a\n0,0.5\n0.001,NaN\n");
+        assert!(e.contains("nan.csv: line 3, column 2 (`current_a`): value NaN is not finite"), "{e}");
+        let e = error_of("time.csv", "t_s,current_a\n0,0.5\n0,0.6\n");
+        assert!(e.contains("time.csv: line 3, column 1 (`t_s`): time 0 does not increase"), "{e}");
+        let e = error_of("short.csv", "t_s,current_a\n0,0.5\n");
+        assert!(e.contains("short.csv: needs at least 2 samples, found 1"), "{e}");
+        let e = error_of("columns.csv", "t_s,current_a\n0,0.5\n0.001,0.5,7\n");
+        assert!(e.contains("columns.csv: line 3"), "{e}");
+    }
+}
