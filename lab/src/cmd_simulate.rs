@@ -489,7 +489,10 @@ mod tests {
     }
 
     fn error_of(name: &str, text: &str) -> String {
-        format!("{:#}", read_current_csv(&write(name, text), 1000.0).unwrap_err())
+        format!(
+            "{:#}",
+            read_current_csv(&write(name, text), 1000.0).unwrap_err()
+        )
     }
 
     #[test]
@@ -503,15 +506,30 @@ mod tests {
     #[test]
     fn bad_current_files_name_file_line_and_column() {
         let e = error_of("header.csv", "t_s,current\n0,0.5\n");
-        assert!(e.contains("header.csv: line 1: header must be `t_s,current_a`"), "{e}");
+        assert!(
+            e.contains("header.csv: line 1: header must be `t_s,current_a`"),
+            "{e}"
+        );
         let e = error_of("number.csv", "t_s,current_a\n0,0.5\n0.001,abc\n");
-        assert!(e.contains("number.csv: line 3, column 2 (`current_a`): `abc` is not a number"), "{e}");
+        assert!(
+            e.contains("number.csv: line 3, column 2 (`current_a`): `abc` is not a number"),
+            "{e}"
+        );
         let e = error_of("nan.csv", "t_s,current_a\n0,0.5\n0.001,NaN\n");
-        assert!(e.contains("nan.csv: line 3, column 2 (`current_a`): value NaN is not finite"), "{e}");
+        assert!(
+            e.contains("nan.csv: line 3, column 2 (`current_a`): value NaN is not finite"),
+            "{e}"
+        );
         let e = error_of("time.csv", "t_s,current_a\n0,0.5\n0,0.6\n");
-        assert!(e.contains("time.csv: line 3, column 1 (`t_s`): time 0 does not increase"), "{e}");
+        assert!(
+            e.contains("time.csv: line 3, column 1 (`t_s`): time 0 does not increase"),
+            "{e}"
+        );
         let e = error_of("short.csv", "t_s,current_a\n0,0.5\n");
-        assert!(e.contains("short.csv: needs at least 2 samples, found 1"), "{e}");
+        assert!(
+            e.contains("short.csv: needs at least 2 samples, found 1"),
+            "{e}"
+        );
         let e = error_of("columns.csv", "t_s,current_a\n0,0.5\n0.001,0.5,7\n");
         assert!(e.contains("columns.csv: line 3"), "{e}");
     }

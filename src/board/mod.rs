@@ -13,3 +13,4 @@
 pub mod mps2_an386;
 #[cfg(feature = "board-nucleo-f446re")]
 pub mod nucleo_f446re;
+pub mod polled_spi;

@@ -2,9 +2,8 @@
 //! Registers: CR0 +0x00, CR1 +0x04, DR +0x08, SR +0x0C (TNF bit 1, RNE bit 2, BSY bit 4),
 //! CPSR +0x10.
 
-use core::convert::Infallible;
+use crate::board::polled_spi::ByteExchange;
 use core::ptr::{read_volatile, write_volatile};
-use embedded_hal::spi::{ErrorType, SpiBus};
 
 const CR0: usize = 0x00;
 const CR1: usize = 0x04;
@@ -47,8 +46,9 @@ impl Pl022 {
     fn sr(&self) -> u32 {
         unsafe { read_volatile(self.reg(SR)) }
     }
+}
 
-    /// Exchanges one byte.
+impl ByteExchange for Pl022 {
     #[inline(always)]
     fn exchange(&mut self, byte: u8) -> u8 {
         while self.sr() & SR_TNF == 0 {}
@@ -56,48 +56,9 @@ impl Pl022 {
         while self.sr() & SR_RNE == 0 {}
         unsafe { read_volatile(self.reg(DR)) as u8 }
     }
-}
-
-impl ErrorType for Pl022 {
-    type Error = Infallible;
-}
-
-impl SpiBus<u8> for Pl022 {
-    fn read(&mut self, words: &mut [u8]) -> Result<(), Infallible> {
-        for w in words.iter_mut() {
-            *w = self.exchange(0);
-        }
-        Ok(())
-    }
-
-    fn write(&mut self, words: &[u8]) -> Result<(), Infallible> {
-        for &w in words {
-            let _ = self.exchange(w);
-        }
-        Ok(())
-    }
-
-    fn transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), Infallible> {
-        let n = read.len().max(write.len());
-        for i in 0..n {
-            let out = write.get(i).copied().unwrap_or(0);
-            let inp = self.exchange(out);
-            if let Some(r) = read.get_mut(i) {
-                *r = inp;
-            }
-        }
-        Ok(())
-    }
-
-    fn transfer_in_place(&mut self, words: &mut [u8]) -> Result<(), Infallible> {
-        for w in words.iter_mut() {
-            *w = self.exchange(*w);
-        }
-        Ok(())
-    }
-
-    fn flush(&mut self) -> Result<(), Infallible> {
-        while self.sr() & SR_BSY != 0 {}
-        Ok(())
+    fn busy(&self) -> bool {
+        self.sr() & SR_BSY != 0
     }
 }
+
+crate::impl_polled_spi_bus!(Pl022);

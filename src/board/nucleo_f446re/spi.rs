@@ -6,9 +6,9 @@
 //! 24-bit frame takes 2.1 µs. Every byte is exchanged (written, then its received byte read), so
 //! the receive side never overruns; MISO is not connected (PA6 stays a plain input).
 
+use crate::board::polled_spi::ByteExchange;
 use core::convert::Infallible;
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
-use embedded_hal::spi::{ErrorType, SpiBus};
 use stm32f4::stm32f446 as pac;
 
 const AHB1ENR_GPIOAEN: u32 = 1 << 0;
@@ -91,8 +91,9 @@ impl Spi1 {
     fn sr(&self) -> u16 {
         self.regs.sr().read().bits()
     }
+}
 
-    /// Exchanges one byte.
+impl ByteExchange for Spi1 {
     #[inline(always)]
     fn exchange(&mut self, byte: u8) -> u8 {
         while self.sr() & SR_TXE == 0 {}
@@ -100,51 +101,12 @@ impl Spi1 {
         while self.sr() & SR_RXNE == 0 {}
         self.regs.dr().read().bits() as u8
     }
-}
-
-impl ErrorType for Spi1 {
-    type Error = Infallible;
-}
-
-impl SpiBus<u8> for Spi1 {
-    fn read(&mut self, words: &mut [u8]) -> Result<(), Infallible> {
-        for w in words.iter_mut() {
-            *w = self.exchange(0);
-        }
-        Ok(())
-    }
-
-    fn write(&mut self, words: &[u8]) -> Result<(), Infallible> {
-        for &w in words {
-            let _ = self.exchange(w);
-        }
-        Ok(())
-    }
-
-    fn transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), Infallible> {
-        let n = read.len().max(write.len());
-        for i in 0..n {
-            let out = write.get(i).copied().unwrap_or(0);
-            let inp = self.exchange(out);
-            if let Some(r) = read.get_mut(i) {
-                *r = inp;
-            }
-        }
-        Ok(())
-    }
-
-    fn transfer_in_place(&mut self, words: &mut [u8]) -> Result<(), Infallible> {
-        for w in words.iter_mut() {
-            *w = self.exchange(*w);
-        }
-        Ok(())
-    }
-
-    fn flush(&mut self) -> Result<(), Infallible> {
-        while self.sr() & SR_BSY != 0 {}
-        Ok(())
+    fn busy(&self) -> bool {
+        self.sr() & SR_BSY != 0
     }
 }
+
+crate::impl_polled_spi_bus!(Spi1);
 
 impl PinErrorType for ChipSelect {
     type Error = Infallible;
