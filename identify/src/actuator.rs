@@ -6,10 +6,13 @@
 //! with the masses replaced and a provenance that records the dataset, the date, the options, the
 //! residuals and the unexcited cells.
 //!
-//! Not identified here: `R_eddy`, `ξ` and `f0` need the dynamic model (4)-(5) (phase-lag scheme of
-//! Section 4, or a direct waveform fit). They are copied from the base file, and the provenance
-//! says so in `not_identified`. `M_s`, `λ_s`, `l_m`, `c0`, `N_m`, `A_m` are the manufacturer's
-//! constants in the paper and are copied too.
+//! This stage identifies the Preisach masses only: `R_eddy`, `ξ` and `f0` are copied from the base
+//! file and listed in the provenance's `not_identified`. `maglab identify` then runs the dynamic
+//! stage ([`crate::dynamics::fit_eddy_and_damping`]: the phase-lag scheme of Section 4 and the
+//! direct waveform fit) on the dataset's dynamic experiments and records its result with
+//! [`crate::dynamics::record::record`], which replaces the three values and removes them from
+//! `not_identified`. `M_s`, `λ_s`, `l_m`, `c0`, `N_m`, `A_m` are the manufacturer's constants in
+//! the paper and are copied.
 
 use crate::cell_of_index;
 use crate::data::Dataset;

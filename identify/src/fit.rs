@@ -1,5 +1,5 @@
 //! The cell masses by constrained, regularized least squares (paper Section 4, after its
-//! reference [5]), solved as a convex QP with `clarabel`.
+//! reference \[5\]), solved as a convex QP with `clarabel`.
 //!
 //! Unknowns, in units of the output scale `s` (the output range of the fit rows, so that the
 //! problem is well scaled whatever the units): the masses `w̃ = w / s` and, optionally, the affine
