@@ -55,6 +55,7 @@ mod firmware {
     use magctl::board::mps2_an386::timer::CmsdkTimer;
     use magctl::board::mps2_an386::{FPGAIO_BASE, SPI0_BASE, TIMER0_BASE, TIMER0_IRQ, TIMER1_BASE};
     use magctl::inverse::{ControlLoop, InverseKind, LoopState, NaiveLoopState};
+    use magctl::model::DynamicModel;
     use magctl::output::{CurrentOutput, DacScale, SpiDac};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
 
@@ -236,6 +237,33 @@ mod firmware {
         a.wrapping_sub(b) & 0x00FF_FFFF
     }
 
+    /// Instructions of one dynamic-model step (`magctl::model::DynamicModel::step`, issue 3's
+    /// figure) on this core: 2000 steps of a 0.5 ± 0.45 A, 200 Hz sine at the control rate from the
+    /// demagnetized state, each timed with SysTick minus the cost of the two reads
+    /// (`read_overhead_ticks`, from the calibration). Returns (min, mean, max) instructions.
+    /// Kept out of line: inlined into `main` beside the `nop` blocks it overflows a literal pool.
+    #[inline(never)]
+    fn measure_model_step(read_overhead_ticks: u32) -> (u32, u32, u32) {
+        let step_s = 1.0 / BAKED_PARAMETERS.control.sample_rate_hz;
+        let model = DynamicModel::new(&BAKED_MEASURE, &BAKED_PARAMETERS.actuator, step_s);
+        let mut state = model.equilibrium::<64>(BAKED_MEASURE.demagnetized(), 0.5);
+        let (mut min, mut max, mut sum) = (u32::MAX, 0u32, 0u64);
+        const STEPS: u32 = 2000;
+        for k in 0..STEPS {
+            let phase = 2.0 * core::f32::consts::PI * 200.0 * step_s * k as f32;
+            let current_a = core::hint::black_box(0.5 + 0.45 * libm::sinf(phase));
+            let a = SYST::get_current();
+            core::hint::black_box(model.step(&mut state, current_a));
+            let b = SYST::get_current();
+            let ticks = (a.wrapping_sub(b) & 0x00FF_FFFF).saturating_sub(read_overhead_ticks);
+            let instructions = (ticks as f32 / 25.6) as u32;
+            min = min.min(instructions);
+            max = max.max(instructions);
+            sum += instructions as u64;
+        }
+        (min, (sum / STEPS as u64) as u32, max)
+    }
+
     fn inject_faults_from_command_line() {
         let mut buf = [0u8; 128];
         let n = semihosting::command_line(&mut buf);
@@ -288,6 +316,15 @@ mod firmware {
         defmt::info!(
             "calibration: 1024 nops = {=u32} SysTick ticks (expect 26214 = 1024 x 25.6)",
             diff
+        );
+        // The two SysTick reads around a measured block: what 1024 nops cost beyond 1024 x 25.6.
+        let read_overhead_ticks = one.saturating_sub(26_214);
+        let (step_min, step_mean, step_max) = measure_model_step(read_overhead_ticks);
+        defmt::info!(
+            "model step (DynamicModel::step, 200 Hz sine, 2000 steps): instructions min {=u32} mean {=u32} max {=u32}",
+            step_min,
+            step_mean,
+            step_max
         );
         let mut cal = encode(PHASE_CALIBRATION, 0, 1024, diff, [0.0; 6], 0, 0);
         cal[4..8].copy_from_slice(&1024u32.to_le_bytes());
