@@ -39,9 +39,10 @@ fn main() {
     firmware_link_setup(&manifest_dir);
 }
 
-/// Firmware builds (`target_os = "none"`): puts the selected board's `memory.x` (and `device.x`)
-/// on the linker search path and adds defmt's linker script to the firmware binaries. Host builds
-/// are untouched. (Board files: `boards/<board>/`; see src/board.)
+/// Firmware builds (`target_os = "none"`): puts the selected board's directory `boards/<board>/`
+/// on the linker search path (its `board_memory.x`, which the root `memory.x` includes, and its
+/// `device.x`) and adds defmt's linker script to the firmware binaries. Host builds are
+/// untouched. (See src/board.)
 fn firmware_link_setup(manifest_dir: &std::path::Path) {
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
