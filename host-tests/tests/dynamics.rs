@@ -28,7 +28,6 @@ use host_tests::reference::dynamics::{
 use host_tests::reference::preisach::RelayPreisach;
 use magctl::model::{DynamicModel, StaticModel};
 use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS, BAKED_PARAMETERS_SOURCE};
-use magctl::preisach::LEVELS;
 use std::f64::consts::PI;
 use std::path::Path;
 
@@ -232,24 +231,11 @@ fn discretization_error_converges_first_order() {
     }
 }
 
-/// Largest `dM/dH` of the measure along any monotone path: a rising path at normalized `x = J + s`
-/// switches on the row-`J` strip (`Σ_{i<J} w_iJ` plus at most `2 w_JJ` from the diagonal cell),
-/// a falling one the column strip; `dM/dH = 2 dμ/dx / Δ`.
+/// Largest `dM/dH` of the measure along any monotone path: `|dM/dx| <= 2 λ` in normalized input
+/// (`λ` the largest line density, `host_tests::bounds`), and `dx/dH = 1 / Δ`.
 fn max_preisach_slope() -> f64 {
-    let m = &BAKED_MEASURE;
-    let mut best = 0.0f64;
-    for j in 0..LEVELS {
-        let row: f64 = (0..j)
-            .map(|i| m.cell_mass_a_per_m(i, j) as f64)
-            .sum::<f64>()
-            + 2.0 * m.cell_mass_a_per_m(j, j) as f64;
-        let col: f64 = (j + 1..LEVELS)
-            .map(|q| m.cell_mass_a_per_m(j, q) as f64)
-            .sum::<f64>()
-            + 2.0 * m.cell_mass_a_per_m(j, j) as f64;
-        best = best.max(row).max(col);
-    }
-    2.0 * best / m.cell_width_a_per_m() as f64
+    2.0 * host_tests::bounds::line_density_bound_a_per_m(&BAKED_MEASURE)
+        / BAKED_MEASURE.cell_width_a_per_m() as f64
 }
 
 /// At 1 Hz the dynamic model is in its quasi-static limit and agrees with the static model (6).

@@ -22,56 +22,37 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
     setup::ensure(ctx)?;
 
     println!("\n==> Preisach loops of the baked operator (maglab loops)");
-    let mut cmd = ctx.cargo(&[
-        "run",
-        "--profile",
-        "host",
-        "--quiet",
-        "-p",
-        "maglab",
-        "--",
-        "loops",
-        "--out",
-        OUT_DIR,
-    ]);
+    let mut cmd = maglab(ctx, &["loops", "--out", OUT_DIR]);
     cmd.args(args);
     run_checked(cmd)?;
 
     println!("\n==> The rate-dependent model at 1-400 Hz (maglab simulate)");
-    run_checked(ctx.cargo(&[
-        "run",
-        "--profile",
-        "host",
-        "--quiet",
-        "-p",
-        "maglab",
-        "--",
-        "simulate",
-        "--freq",
-        "1,50,100,200,400",
-        "--out",
-        "out/simulate",
-    ]))?;
+    run_checked(maglab(
+        ctx,
+        &[
+            "simulate",
+            "--freq",
+            "1,50,100,200,400",
+            "--out",
+            "out/simulate",
+        ],
+    ))?;
 
     println!(
         "\n==> Firmware under QEMU: inverse control in the timer interrupt (cargo xtask qemu)"
     );
     crate::qemu::check(ctx)?;
     println!("\n==> Figures 7/8 from the QEMU run's current commands (maglab track --capture)");
-    let cmd = ctx.cargo(&[
-        "run",
-        "--profile",
-        "host",
-        "--quiet",
-        "-p",
-        "maglab",
-        "--",
-        "track",
-        "--capture",
-        "out/qemu/capture.csv",
-        "--out",
-        "out/track",
-    ]);
+    let cmd = maglab(
+        ctx,
+        &[
+            "track",
+            "--capture",
+            "out/qemu/capture.csv",
+            "--out",
+            "out/track",
+        ],
+    );
     run_checked(cmd)?;
 
     let out = ctx.root.join(OUT_DIR);
@@ -93,4 +74,12 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
         println!("  {}", path.display());
     }
     Ok(())
+}
+
+/// `cargo run --profile host --quiet -p maglab -- <args>` in the repository root (profile `host`:
+/// optimized like release, without the firmware's fat LTO).
+fn maglab(ctx: &Ctx, args: &[&str]) -> std::process::Command {
+    let mut cmd = ctx.cargo(&["run", "--profile", "host", "--quiet", "-p", "maglab", "--"]);
+    cmd.args(args);
+    cmd
 }
