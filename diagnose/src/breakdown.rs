@@ -3,22 +3,12 @@
 //! vs descending branch, near-reversal vs mid-branch, early vs late in the record — and the
 //! plain-language summary of it.
 //!
-//! **Gap onset.** A frequency band *disagrees* when its systematic gap (noise-corrected RMS, as a
-//! fraction of the band's measured displacement range) exceeds the larger of
-//!
-//! * `2 σ / range`: twice the white-noise level, so noise alone never makes a gap;
-//! * 1 % of the motion: the size of difference a loop plot like the paper's Figure 6 shows;
-//! * when the frequencies the nominal parameters were identified on are known
-//!   (`identified_up_to_hz`, `maglab diagnose --identified-up-to-hz`): `k = 2` times the pooled
-//!   (quadratic-mean) relative gap of the bands at or below that frequency. The model is never
-//!   exact even where it was identified (one `R_eddy` cannot follow a frequency-dependent one
-//!   over a whole band), so "the gap" is where the error rises clearly above the agreement the
-//!   identification reached: twice its RMS, four times its energy. A band inside the
-//!   identification band exceeds `2×` the pooled value only when the identification itself is
-//!   very uneven (with `n` identification bands a single band can reach at most `√n ×` the pooled
-//!   value), so for `n <= 4` the identification bands count as agreeing by construction.
-//!
-//! The gap starts at the lowest band from which every higher band disagrees.
+//! **Gap onset** (measured, never assumed). A frequency band *disagrees* when its systematic gap
+//! (noise-corrected RMS, as a fraction of the band's measured displacement range) exceeds the
+//! larger of `2 σ / range` (twice the white-noise level, so noise alone never makes a gap) and
+//! 1 % of the motion (the size of difference a loop plot like the paper's Figure 6 shows). The
+//! gap starts at the lowest band from which every higher band disagrees. Every band is judged on
+//! its own data, whatever the parameters were identified on.
 
 use crate::diagnosis::{systematic, ExperimentInfo};
 use crate::signal;
@@ -155,7 +145,6 @@ pub fn analyse(
     infos: &[ExperimentInfo],
     noise_m: f64,
     rate_hz: f64,
-    identified_up_to_hz: Option<f64>,
 ) -> Where {
     let mut totals = [Acc::default(); 6];
     let mut experiments = Vec::new();
@@ -268,26 +257,9 @@ pub fn analyse(
         });
         ranges.push(range);
     }
-    // Onset rule (module docs): the baseline is the identification band's pooled relative gap.
-    let baseline = identified_up_to_hz
-        .map(|f_id| {
-            let inside: Vec<f64> = bands
-                .iter()
-                .filter(|b| b.frequency_hz <= f_id * 1.05)
-                .map(|b| b.relative_gap * b.relative_gap)
-                .collect();
-            if inside.is_empty() {
-                0.0
-            } else {
-                (inside.iter().sum::<f64>() / inside.len() as f64).sqrt()
-            }
-        })
-        .unwrap_or(0.0);
+    // Onset rule (module docs).
     for (b, range) in bands.iter_mut().zip(&ranges) {
-        b.disagrees = b.relative_gap
-            > (2.0 * noise_m / range.max(1e-300))
-                .max(0.01)
-                .max(ONSET_FACTOR * baseline);
+        b.disagrees = b.relative_gap > (2.0 * noise_m / range.max(1e-300)).max(0.01);
     }
     let gap_start_hz = match bands.iter().rposition(|b| !b.disagrees) {
         None => bands.first().map(|b| b.frequency_hz),
@@ -306,15 +278,12 @@ pub fn analyse(
         late_rms_m: totals[5].rms(),
         summary: Vec::new(),
     };
-    w.summary = summarize(&w, noise_m, identified_up_to_hz.map(|f| (f, baseline)));
+    w.summary = summarize(&w, noise_m);
     w
 }
 
-/// `k` of the gap-onset rule (module docs).
-pub const ONSET_FACTOR: f64 = 2.0;
-
 /// The plain-language findings.
-fn summarize(w: &Where, noise_m: f64, identification: Option<(f64, f64)>) -> Vec<String> {
+fn summarize(w: &Where, noise_m: f64) -> Vec<String> {
     let mut out = Vec::new();
     let (Some(first), Some(last)) = (w.bands.first(), w.bands.last()) else {
         return out;
@@ -332,15 +301,8 @@ fn summarize(w: &Where, noise_m: f64, identification: Option<(f64, f64)>) -> Vec
         )),
         Some(f) => out.push(format!(
             "The gap starts at about {f:.0} Hz: up to {:.0} Hz the model agrees within max(2x noise, \
-             1 % of the motion{}); at {:.0} Hz the systematic gap is {:.1} % of the motion.",
+             1 % of the motion); at {:.0} Hz the systematic gap is {:.1} % of the motion.",
             w.bands.iter().filter(|b| b.frequency_hz < f).map(|b| b.frequency_hz).fold(0.0, f64::max),
-            match identification {
-                Some((f_id, base)) => format!(
-                    ", {ONSET_FACTOR}x the {:.2} % it reaches up to {f_id:.0} Hz where it was identified",
-                    100.0 * base
-                ),
-                None => String::new(),
-            },
             last.frequency_hz,
             100.0 * last.relative_gap
         )),

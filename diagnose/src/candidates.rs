@@ -1,223 +1,519 @@
-//! The candidate effects of the diagnosis: for each effect of the library, its free parameters
-//! (name, unit, search range, log or linear scale, a starting grid) and the model augmentation a
-//! parameter vector stands for.
+//! The candidate effects of the diagnosis and the refitted nominal model: each candidate's free
+//! parameters (name, unit, search range, scale, which model stage they act in) and the model
+//! parameters a parameter vector stands for.
 //!
-//! Parameters are fitted in a normalized coordinate `z ∈ [0, 1]` per parameter (log scale for
-//! positive scale quantities such as corners and time constants), so one simplex step size fits
-//! all; the optimizer's excursions outside `[0, 1]` are clamped.
+//! Every candidate — the nominal model included — refits the nominal model's dynamic constants
+//! (`R_eddy`, `ξ`, `f0`) and the channel skew together with its own parameters, on the same
+//! training experiments, so that a wrong constant in the parameter file is neither taken for an
+//! effect nor hides one. The constants move within the uncertainty of an identification
+//! ([`REFIT_RANGE`]: `R_eddy` and `ξ` ×/÷ 1.25, `f0` ×/÷ 1.06, several times the 3 % that
+//! `maglab identify` reaches): an effect is not a wrong constant, and a constant far from the file's is itself a
+//! finding the ranking shows. Each effect's range contains its "off" value (ratio 1, susceptibility 0,
+//! …), so a candidate nests the refitted nominal model.
+//!
+//! | candidate | parameters | form (see [`crate::model`]) |
+//! |---|---|---|
+//! | `nominal` | — | eqs (4)-(5) |
+//! | `eddy_frequency_dependence` | `hf_to_dc_ratio`, `corner_hz`, `anchor` | `R_eddy` going from `R_dc` below the corner to `R_hf = ratio · R_dc` above it (one extra eddy path), the refitted `R` between them: `ln R = ln R_dc + anchor · ln ratio` (a level change is the refit's, not a frequency dependence) |
+//! | `amplifier_bandwidth` | `natural_hz`, `damping_ratio` | second-order low-pass on the current |
+//! | `sensor_dynamics` | `natural_hz`, `damping_ratio`, `delay_s` | second-order low-pass and a delay on the reading |
+//! | `reversible_magnetization` | `susceptibility`, `saturation_field_a_per_m`, `shape` | `χ_r H / (1 + |H/H_s|^p)^(1/p)` |
+//! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `1 − g φ`, strain `e φ` |
+//! | `delta_e_effect` | `stiffness_m2`, `stiffness_m4` | `ω² = ω0² (1 + d₁ m² + d₂ m⁴)`, `m = M/M_s` |
+//! | `mechanical_load` | `mass_ratio`, `coupling_hz`, `damping_ratio` | one load mode |
+//!
+//! Parameters are optimized in an unbounded coordinate `z`: `value = lo + (hi − lo) σ(z)` with
+//! the algebraic sigmoid `σ(z) = (1 + z/√(1 + z²))/2` (on `ln value` for log-scaled ones), so
+//! Levenberg-Marquardt needs no bounds and a value never leaves its physical range; its tails
+//! are polynomial, so a fit that touches a limit still has a gradient to leave it (`tanh` has
+//! none).
 
 use crate::effects::EffectName;
-use crate::model::{Augmentation, EddyLadder, Load, Nominal};
+use crate::model::{Electro, Mech, Nominal};
+
+/// Which model stage a parameter acts in (stage-B parameters reuse a cached stage-A run).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Electromagnetic (expensive).
+    Electro,
+    /// Mechanical and sensor (cheap).
+    Mech,
+}
 
 /// One free parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParamSpec {
-    /// Name in the JSON report.
+    /// Name in the report.
     pub name: &'static str,
-    /// Lower end of the search range.
+    /// Lower end of the range.
     pub lo: f64,
     /// Upper end.
     pub hi: f64,
     /// Log scale (`lo > 0`).
     pub log: bool,
+    /// Stage.
+    pub stage: Stage,
+    /// Bounds that are the limits of the effect's physical range (a fit pinned there explains
+    /// the data with an implausible effect; see [`ParamSpec::pinned`]); bounds where the effect
+    /// switches off (a delay of 0) are not among them.
+    pub edge: Edge,
+}
+
+/// Which bounds of a parameter are physical limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Edge {
+    /// Neither.
+    None,
+    /// The lower bound.
+    Low,
+    /// The upper bound.
+    High,
+    /// Both.
+    Both,
 }
 
 impl ParamSpec {
-    /// Value at normalized coordinate `z` (clamped to `[0, 1]`).
+    /// The fitted coordinate `z` sits within 1 % of the range at a physical limit.
+    pub fn pinned(&self, z: f64) -> bool {
+        let s = sigmoid(z);
+        (s < 0.01 && matches!(self.edge, Edge::Low | Edge::Both))
+            || (s > 0.99 && matches!(self.edge, Edge::High | Edge::Both))
+    }
+
+    /// Value at the unbounded coordinate `z`.
     pub fn value(&self, z: f64) -> f64 {
-        let z = z.clamp(0.0, 1.0);
+        let s = sigmoid(z);
         if self.log {
-            (self.lo.ln() + z * (self.hi.ln() - self.lo.ln())).exp()
+            (self.lo.ln() + s * (self.hi.ln() - self.lo.ln())).exp()
         } else {
-            self.lo + z * (self.hi - self.lo)
+            self.lo + s * (self.hi - self.lo)
         }
     }
 
-    /// Normalized coordinate of `v`.
+    /// Coordinate of `v` (clamped just inside the range).
     pub fn coordinate(&self, v: f64) -> f64 {
-        if self.log {
-            (v.ln() - self.lo.ln()) / (self.hi.ln() - self.lo.ln())
+        let s = if self.log {
+            (v.max(self.lo).ln() - self.lo.ln()) / (self.hi.ln() - self.lo.ln())
         } else {
             (v - self.lo) / (self.hi - self.lo)
+        };
+        let u = 2.0 * s.clamp(1e-4, 1.0 - 1e-4) - 1.0;
+        u / (1.0 - u * u).sqrt()
+    }
+}
+
+/// `(1 + z/√(1 + z²))/2`.
+fn sigmoid(z: f64) -> f64 {
+    0.5 * (1.0 + z / (1.0 + z * z).sqrt())
+}
+
+/// A candidate: the nominal model refitted, or it plus one or more effects.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Candidate {
+    /// The effects added (empty: the refitted nominal model).
+    pub effects: Vec<EffectName>,
+}
+
+impl Candidate {
+    /// The refitted nominal model.
+    pub fn nominal() -> Self {
+        Candidate {
+            effects: Vec::new(),
+        }
+    }
+
+    /// One effect.
+    pub fn single(effect: EffectName) -> Self {
+        Candidate {
+            effects: vec![effect],
+        }
+    }
+
+    /// Its name (`nominal` or the effect names joined by `+`).
+    pub fn name(&self) -> String {
+        if self.effects.is_empty() {
+            "nominal".into()
+        } else {
+            self.effects
+                .iter()
+                .map(|e| e.name())
+                .collect::<Vec<_>>()
+                .join("+")
         }
     }
 }
 
-/// The free parameters of a candidate, given the nominal constants (ranges scale with them).
-pub fn parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
-    let r = nominal.eddy_resistance_ohm;
+/// How far the refit may move `R_eddy`, `ξ`, `f0` from the file's values: factors (module docs).
+pub const REFIT_RANGE: [f64; 3] = [1.25, 1.25, 1.06];
+
+/// The refitted nominal constants and the skew: `R_eddy`, `ξ`, `f0` (within `range` of the
+/// nominal values, factors), `skew`.
+pub fn common_parameters(nominal: &Nominal, range: &[f64; 3]) -> Vec<ParamSpec> {
+    let (r, xi, f0) = (
+        nominal.eddy_resistance_ohm,
+        nominal.damping_ratio,
+        nominal.resonance_hz,
+    );
+    let [kr, kx, kf] = *range;
+    vec![
+        ParamSpec {
+            name: "eddy_resistance_ohm",
+            lo: r / kr,
+            hi: r * kr,
+            log: true,
+            stage: Stage::Electro,
+            edge: Edge::None,
+        },
+        ParamSpec {
+            name: "damping_ratio",
+            lo: xi / kx,
+            hi: xi * kx,
+            log: true,
+            stage: Stage::Mech,
+            edge: Edge::None,
+        },
+        ParamSpec {
+            name: "resonance_hz",
+            lo: f0 / kf,
+            hi: f0 * kf,
+            log: true,
+            stage: Stage::Mech,
+            edge: Edge::None,
+        },
+        ParamSpec {
+            name: "channel_skew_samples",
+            lo: -1.0,
+            hi: 1.0,
+            log: false,
+            stage: Stage::Mech,
+            edge: Edge::None,
+        },
+    ]
+}
+
+/// The effect's own parameters.
+pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
     let f0 = nominal.resonance_hz;
+    // A reversible term that saturates well inside the operating range is a constant
+    // magnetization there (the start state's offset), not a susceptibility.
+    let h_s_min = (0.5 * nominal.operating_field_a_per_m).max(2e3);
+    use Stage::{Electro as A, Mech as B};
     match effect {
         EffectName::EddyFrequencyDependence => vec![
             ParamSpec {
-                name: "dc_ohm",
-                lo: r / 10.0,
-                hi: r * 10.0,
-                log: true,
-            },
-            ParamSpec {
                 name: "hf_to_dc_ratio",
-                lo: 1.0,
-                hi: 30.0,
+                lo: 1.0 / 16.0,
+                hi: 16.0,
                 log: true,
+                stage: A,
+                edge: Edge::Both,
             },
-            ParamSpec {
-                name: "corner_hz",
-                lo: 5.0,
-                hi: 5000.0,
-                log: true,
-            },
-        ],
-        EffectName::AmplifierBandwidth => vec![ParamSpec {
-            name: "corner_hz",
-            lo: 10.0,
-            hi: 50_000.0,
-            log: true,
-        }],
-        EffectName::SensorDynamics => vec![
             ParamSpec {
                 name: "corner_hz",
                 lo: 10.0,
+                hi: 5000.0,
+                log: true,
+                stage: A,
+                edge: Edge::None,
+            },
+            ParamSpec {
+                name: "anchor",
+                lo: 0.0,
+                hi: 1.0,
+                log: false,
+                stage: A,
+                edge: Edge::None,
+            },
+        ],
+        EffectName::AmplifierBandwidth => vec![
+            ParamSpec {
+                name: "natural_hz",
+                lo: 50.0,
                 hi: 50_000.0,
                 log: true,
+                stage: A,
+                edge: Edge::Low,
+            },
+            ParamSpec {
+                name: "damping_ratio",
+                lo: 0.3,
+                hi: 3.0,
+                log: true,
+                stage: A,
+                edge: Edge::None,
+            },
+        ],
+        EffectName::SensorDynamics => vec![
+            ParamSpec {
+                name: "natural_hz",
+                lo: 100.0,
+                hi: 50_000.0,
+                log: true,
+                stage: B,
+                edge: Edge::Low,
+            },
+            ParamSpec {
+                name: "damping_ratio",
+                lo: 0.3,
+                hi: 3.0,
+                log: true,
+                stage: B,
+                edge: Edge::None,
             },
             ParamSpec {
                 name: "delay_s",
                 lo: 0.0,
-                hi: 2.0e-3,
+                hi: 1e-3,
                 log: false,
+                stage: B,
+                edge: Edge::High,
             },
         ],
-        EffectName::ReversibleMagnetization => vec![ParamSpec {
-            name: "susceptibility",
-            lo: 0.0,
-            hi: 40.0,
-            log: false,
-        }],
+        EffectName::ReversibleMagnetization => vec![
+            ParamSpec {
+                name: "susceptibility",
+                lo: 0.0,
+                hi: 30.0,
+                log: false,
+                stage: A,
+                edge: Edge::High,
+            },
+            ParamSpec {
+                name: "saturation_field_a_per_m",
+                lo: h_s_min,
+                hi: 50.0 * h_s_min,
+                log: true,
+                stage: A,
+                edge: Edge::Low,
+            },
+            ParamSpec {
+                name: "shape",
+                lo: 0.7,
+                hi: 4.0,
+                log: true,
+                stage: A,
+                edge: Edge::None,
+            },
+        ],
         EffectName::ThermalDrift => vec![
+            // A coil's thermal time constant is seconds to minutes; below 0.5 s the candidate
+            // would follow the excitation itself and become a static output nonlinearity.
             ParamSpec {
                 name: "time_constant_s",
-                lo: 1e-3,
-                hi: 100.0,
+                lo: 0.5,
+                hi: 1000.0,
                 log: true,
+                stage: B,
+                edge: Edge::Low,
             },
             ParamSpec {
-                name: "scale_loss_per_a2",
-                lo: -0.5,
-                hi: 0.5,
+                name: "lag_s",
+                lo: 0.01,
+                hi: 100.0,
+                log: true,
+                stage: B,
+                edge: Edge::None,
+            },
+            ParamSpec {
+                name: "gain_loss_per_a2",
+                lo: -5.0,
+                hi: 5.0,
                 log: false,
+                stage: B,
+                edge: Edge::Both,
+            },
+            ParamSpec {
+                name: "strain_per_a2",
+                lo: -5.0,
+                hi: 5.0,
+                log: false,
+                stage: B,
+                edge: Edge::Both,
             },
         ],
-        EffectName::DeltaEEffect => vec![ParamSpec {
-            name: "stiffness_change",
-            lo: -0.9,
-            hi: 10.0,
-            log: false,
-        }],
+        EffectName::DeltaEEffect => vec![
+            ParamSpec {
+                name: "stiffness_m2",
+                lo: -0.8,
+                hi: 10.0,
+                log: false,
+                stage: B,
+                edge: Edge::Both,
+            },
+            ParamSpec {
+                name: "stiffness_m4",
+                lo: -10.0,
+                hi: 10.0,
+                log: false,
+                stage: B,
+                edge: Edge::Both,
+            },
+        ],
         EffectName::MechanicalLoad => vec![
             ParamSpec {
                 name: "mass_ratio",
-                lo: 0.01,
+                lo: 0.02,
                 hi: 10.0,
                 log: true,
+                stage: B,
+                edge: Edge::High,
             },
             ParamSpec {
                 name: "coupling_hz",
-                lo: 0.3 * f0,
+                lo: 0.5 * f0,
                 hi: 20.0 * f0,
                 log: true,
+                stage: B,
+                edge: Edge::Low,
             },
             ParamSpec {
                 name: "damping_ratio",
-                lo: 0.01,
+                lo: 0.02,
                 hi: 3.0,
                 log: true,
+                stage: B,
+                edge: Edge::None,
             },
         ],
-        EffectName::Backlash => Vec::new(),
     }
 }
 
-/// The normalized starting points of the coarse search (each is refined by Nelder-Mead; the best
-/// refined one wins). They cover the range of the most influential parameter.
-pub fn starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
-    let specs = parameters(effect, nominal);
-    let line = |k: usize| -> Vec<f64> { (0..k).map(|i| (i as f64 + 0.5) / k as f64).collect() };
+/// Every parameter of a candidate: the common ones (within `range`), then each effect's.
+pub fn parameters(candidate: &Candidate, nominal: &Nominal, range: &[f64; 3]) -> Vec<ParamSpec> {
+    let mut specs = common_parameters(nominal, range);
+    for &e in &candidate.effects {
+        specs.extend(effect_parameters(e, nominal));
+    }
+    specs
+}
+
+/// Starting values of an effect's parameters (physical units): a small grid over the most
+/// influential ones; each start is evaluated and the best refined.
+pub fn effect_starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
+    let f0 = nominal.resonance_hz;
+    let mut out = Vec::new();
     match effect {
         EffectName::EddyFrequencyDependence => {
-            let dc = specs[0].coordinate(nominal.eddy_resistance_ohm);
-            let mut out = Vec::new();
-            for corner in [0.35, 0.55, 0.75] {
-                out.push(vec![dc, 0.4, corner]);
-                out.push(vec![dc - 0.15, 0.4, corner]);
+            for (ratio, anchor) in [(3.0, 0.8), (1.0 / 3.0, 0.8), (3.0, 0.2)] {
+                for corner in [60.0, 250.0, 1000.0] {
+                    out.push(vec![ratio, corner, anchor]);
+                }
             }
-            out
         }
-        EffectName::AmplifierBandwidth => line(6).into_iter().map(|z| vec![z]).collect(),
+        EffectName::AmplifierBandwidth => {
+            for f in [300.0, 1000.0, 3000.0] {
+                out.push(vec![f, 0.7]);
+            }
+        }
         EffectName::SensorDynamics => {
-            let mut out: Vec<Vec<f64>> = line(4).into_iter().map(|z| vec![z, 0.0]).collect();
-            out.push(vec![1.0, 0.05]);
-            out.push(vec![1.0, 0.2]);
-            out
+            for f in [500.0, 1500.0, 5000.0] {
+                for delay in [0.0, 1.5e-4] {
+                    out.push(vec![f, 0.7, delay]);
+                }
+            }
         }
-        EffectName::ReversibleMagnetization => [0.5, 2.0, 6.0, 15.0]
-            .iter()
-            .map(|&c| vec![specs[0].coordinate(c)])
-            .collect(),
+        EffectName::ReversibleMagnetization => {
+            let h_s = nominal.operating_field_a_per_m.max(4e3);
+            for chi in [1.0, 5.0, 15.0] {
+                out.push(vec![chi, h_s, 1.5]);
+            }
+        }
         EffectName::ThermalDrift => {
-            let mut out = Vec::new();
-            for tau in [0.2, 0.45, 0.7] {
-                for g in [0.45, 0.55] {
-                    out.push(vec![tau, g]);
+            for tau in [1.0, 5.0, 30.0] {
+                for g in [-0.05, 0.05] {
+                    out.push(vec![tau, 0.3, g, 0.0]);
                 }
             }
-            out
         }
-        EffectName::DeltaEEffect => [-0.5, 0.5, 2.0, 6.0]
-            .iter()
-            .map(|&c| vec![specs[0].coordinate(c)])
-            .collect(),
+        EffectName::DeltaEEffect => {
+            for d in [-0.3, 0.5, 2.0] {
+                out.push(vec![d, 0.0]);
+            }
+        }
         EffectName::MechanicalLoad => {
-            let mut out = Vec::new();
-            for ratio in [0.3, 0.6] {
-                for coupling in [0.25, 0.5, 0.75] {
-                    out.push(vec![ratio, coupling, 0.5]);
+            for ratio in [0.3, 1.0] {
+                for c in [1.5, 3.0, 6.0] {
+                    out.push(vec![ratio, c * f0, 0.2]);
                 }
             }
-            out
         }
-        EffectName::Backlash => Vec::new(),
+    }
+    out
+}
+
+/// The model parameters a candidate's values (physical units, [`parameters`] order) stand for.
+pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech) {
+    let mut e = Electro::nominal(values[0]);
+    let mut m = Mech::nominal(values[1], values[2]);
+    m.skew_samples = values[3];
+    let mut k = 4;
+    for &effect in &candidate.effects {
+        let v = &values[k..];
+        match effect {
+            EffectName::EddyFrequencyDependence => {
+                // R_dc from the refitted R and the anchor; R_hf = ratio · R_dc.
+                e.eddy_resistance_ohm = values[0] * (-v[2] * v[0].ln()).exp();
+                e.eddy_path = Some((v[0], v[1]));
+            }
+            EffectName::AmplifierBandwidth => e.amplifier = Some((v[0], v[1])),
+            EffectName::SensorDynamics => m.sensor = Some((v[0], v[1], v[2])),
+            EffectName::ReversibleMagnetization => e.reversible = Some((v[0], v[1], v[2])),
+            EffectName::ThermalDrift => m.thermal = Some((v[0], v[1], v[2], v[3])),
+            EffectName::DeltaEEffect => m.delta_e = Some((v[0], v[1])),
+            EffectName::MechanicalLoad => m.load = Some((v[0], v[1], v[2])),
+        }
+        k += effect_parameter_count(effect);
+    }
+    (e, m)
+}
+
+/// Number of parameters of an effect.
+pub fn effect_parameter_count(effect: EffectName) -> usize {
+    match effect {
+        EffectName::AmplifierBandwidth | EffectName::DeltaEEffect => 2,
+        EffectName::EddyFrequencyDependence
+        | EffectName::ReversibleMagnetization
+        | EffectName::SensorDynamics
+        | EffectName::MechanicalLoad => 3,
+        EffectName::ThermalDrift => 4,
     }
 }
 
-/// The augmentation a candidate's parameter values (physical units, in [`parameters`] order)
-/// stand for.
-pub fn augmentation(effect: EffectName, values: &[f64]) -> Augmentation {
-    let mut a = Augmentation::default();
-    match effect {
-        EffectName::EddyFrequencyDependence => {
-            a.eddy = Some(EddyLadder {
-                dc_ohm: values[0],
-                hf_ohm: values[0] * values[1],
-                corner_hz: values[2],
-            })
-        }
-        EffectName::AmplifierBandwidth => a.amplifier_corner_hz = Some(values[0]),
-        EffectName::SensorDynamics => {
-            a.sensor_corner_hz = Some(values[0]);
-            a.sensor_delay_s = Some(values[1]);
-        }
-        EffectName::ReversibleMagnetization => a.susceptibility = Some(values[0]),
-        EffectName::ThermalDrift => a.thermal = Some((values[0], values[1])),
-        EffectName::DeltaEEffect => a.delta_e = Some(values[0]),
-        EffectName::MechanicalLoad => {
-            a.load = Some(Load {
-                mass_ratio: values[0],
-                coupling_hz: values[1],
-                damping_ratio: values[2],
-            })
-        }
-        EffectName::Backlash => {}
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coordinates_round_trip_and_stay_in_range() {
+        let s = ParamSpec {
+            name: "x",
+            lo: 10.0,
+            hi: 5000.0,
+            log: true,
+            stage: Stage::Mech,
+            edge: Edge::Low,
+        };
+        assert!((s.value(s.coordinate(250.0)) - 250.0).abs() < 1e-9);
+        assert!(s.value(50.0) <= 5000.0 && s.value(-50.0) >= 10.0);
+        let l = ParamSpec {
+            name: "y",
+            lo: -1.0,
+            hi: 1.0,
+            log: false,
+            stage: Stage::Mech,
+            edge: Edge::None,
+        };
+        assert!((l.value(l.coordinate(0.3)) - 0.3).abs() < 1e-12);
     }
-    a
+
+    #[test]
+    fn counts_match_specs() {
+        let n = Nominal::from_params(&actuator_params::paper_defaults());
+        for e in EffectName::LIBRARY {
+            assert_eq!(effect_parameters(e, &n).len(), effect_parameter_count(e));
+            for s in effect_starts(e, &n) {
+                assert_eq!(s.len(), effect_parameter_count(e));
+            }
+        }
+    }
 }

@@ -3,72 +3,92 @@
 //!
 //! # Steps
 //!
-//! 1. **Nominal residual.** Every experiment's current is run through the nominal model
-//!    ([`crate::model`], started like the rig: demagnetized memory at equilibrium under the first
-//!    current). The first `max(one period, 2 %)` of each record (at most 25 %) is not scored: it
-//!    holds the transient of an initial magnetic state the data do not reveal.
-//! 2. **Noise level.** σ is the white-noise level of the residual above 0.3·f_s
+//! 1. **Experiments.** Each record's fundamental (the dominant frequency of its current),
+//!    amplitude and bias. Records whose fundamental is below [`QUASI_STATIC_BELOW_HZ`] (reversal
+//!    sweeps, slow loops) are *quasi-static*: they enter the "where" breakdown only. The first
+//!    `max(one period, 2 %)` of each record (at most 25 %) is not scored: it holds the start-up
+//!    transient.
+//! 2. **Nuisances** (estimated, never asked for; the report says what was estimated), with the
+//!    parameter file's model:
+//!    * the start state of each experiment: as `dataset.json` documents it, else the one of
+//!      `switch-on-demagnetized`, `demagnetized`, `negative-saturation`, `positive-saturation`,
+//!      `previous` that fits it best (the memory left outside a periodic loop sets a constant
+//!      offset of `M`, so a wrong start is a systematic error);
+//!    * the current between samples (held or linear: half a sample of delay apart);
+//!    * the sub-sample skew of the displacement channel against the current channel (within
+//!      ±1 sample; golden-section search);
+//!    * the sensor offset (one per dataset, least squares in closed form).
+//! 3. **Noise level.** σ is the white-noise level of the residual above 0.3·f_s
 //!    ([`crate::signal::white_noise_sigma`]), median over experiments. The *systematic gap* of a
 //!    residual with RMS `e` is `g = √max(e² − σ², 0)`.
-//! 3. **Where** ([`crate::breakdown`]): per experiment and per frequency band.
-//! 4. **Split.** Experiments are grouped by fundamental frequency (within 5 %) and amplitude
-//!    (within 10 %). With 3+ frequency groups, every third frequency (the 2nd, 5th, …, so the
-//!    extremes stay in training) is held out with all its amplitudes; with fewer, every other
-//!    amplitude group; else every other experiment. No held-out experiment has a training
-//!    experiment at the same frequency and amplitude, and the fit must interpolate between
-//!    frequencies rather than copy a neighbour.
-//! 5. **Candidates.** Each effect of the library ([`crate::candidates`]) is added to the nominal
-//!    model and its parameters fitted on the training experiments only (least squares on the
-//!    displacement; the coarse starting points are evaluated, then Nelder-Mead (argmin) refines the
-//!    best one, and the second when its cost is within 50 % of the best). Candidates run in parallel (rayon).
-//! 6. **Score and verdict.** Held-out RMS before (nominal) and after (augmented).
-//!    * `none` when the nominal model's systematic gap over all experiments is not above the noise:
-//!      `g0 ≤ σ` (the residual RMS is at most √2 σ).
-//!    * Otherwise a candidate is **significant** when, on the held-out experiments, (a) its
-//!      systematic gap is at most half the nominal one (`g_after ≤ 0.5 g_before`: it removes at
-//!      least 75 % of the gap's energy) and (b) it lowers the error on at least 75 % of the
-//!      held-out experiments (a consistent improvement, not one experiment fitted at the cost of
-//!      others). The verdict is the significant candidate with the lowest held-out error, else
-//!      `unexplained` (the report still ranks the partial explanations).
-//!    * Candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`.
-//! 7. **Second stage.** When the winner still leaves a held-out gap above 2σ, every other
-//!    candidate is refitted on top of it (forward selection) and ranks 2.. are ordered by that
-//!    combined held-out error; those passing the same criterion against the winner-only model are
-//!    listed as `additional_effects` (two effects at once).
+//! 4. **Where** ([`crate::breakdown`]): the residual of the parameter file's model (with the
+//!    nuisances) per experiment and per frequency band, each band's disagreement measured against
+//!    max(2σ, 1 % of the motion).
+//! 5. **Split.** Experiments are grouped by fundamental (within 5 %) and amplitude (within 10 %).
+//!    Held out: the highest frequency group (outside the training span in frequency) and, with
+//!    three or more amplitude groups, the highest amplitude group (outside it in amplitude); with
+//!    two amplitude groups, the higher one at every other frequency (so that training still sees
+//!    how the response depends on amplitude); with one frequency group, every other amplitude
+//!    group, else every other experiment.
+//! 6. **Candidates** ([`crate::candidates`], [`crate::fit`]). The nominal model with its dynamic
+//!    constants (`R_eddy`, `ξ`, `f0`) and the skew refitted on the training experiments, and the
+//!    same plus each effect of the library, fitted by Levenberg-Marquardt from a small grid of
+//!    starts (the effects in parallel, rayon).
+//! 7. **Score and verdict** on the held-out experiments, against the *refitted* nominal model:
+//!    * `none` when the refitted nominal model's held-out systematic gap is below the resolution
+//!      of the gap estimate ([`resolution_floor`] = max(0.35 σ, 0.05 % of the motion)), or not
+//!      above [`none_threshold`] = max(σ, 0.2 % of the motion) and no candidate explains it;
+//!    * a candidate is **significant** when its held-out systematic gap is at most half the
+//!      refitted nominal one (it removes ≥ 75 % of the gap's energy) and it makes at most a
+//!      quarter of the held-out experiments worse (RMS up by more than 5 % + 0.1 σ): the
+//!      verdict is the significant candidate with the lowest held-out error, else `unexplained`;
+//!    * candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`.
+//! 8. **Second stage** (forward selection). When the winner leaves a held-out gap above max(2σ, a
+//!    tenth of the refitted nominal gap) — or when no candidate is significant alone but the best
+//!    one removes at least a third of the gap's energy ([`PROMISING`]: two strong effects) —
+//!    the [`PAIR_CANDIDATES`] best other single candidates are refitted on top of it. The best pair
+//!    is named (the second effect
+//!    as an `additional_effect`) when it passes the significance test against the first effect
+//!    alone, removes three quarters of the refitted nominal gap's energy, and both its effects
+//!    are needed: with either switched off and the rest refitted, the gap is at least twice as
+//!    large.
+//!
+//! **Significance** (steps 7 and 8) is a knock-out test as well: the candidate's held-out gap
+//! must also be at most half of what its own fit gives with its effect switched off (so the
+//! improvement is the effect's, not a better optimum of the shared constants), and no effect
+//! parameter may be pinned at a physical limit of its range ([`crate::candidates::Edge`]): an
+//! explanation that needs an implausible effect is none.
 
 use crate::breakdown::{self, Where};
-use crate::candidates;
+use crate::candidates::{self, Candidate};
 use crate::effects::EffectName;
-use crate::model::{simulate, Augmentation, Nominal};
+use crate::fit::{fit, ExperimentData, FitSettings, Fitted, ModelSetup};
+use crate::model::{run_mech, Electro, Interpolation, Mech, ModelStart, Nominal};
 use crate::signal;
-use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
-use argmin::solver::neldermead::NelderMead;
 use magctl::preisach::PreisachMeasure;
 use maglab_identify::data::Measurement;
+use maglab_identify::dataset_info::{DatasetInfo, StartState};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Records with a fundamental below this are quasi-static (step 1), Hz.
+pub const QUASI_STATIC_BELOW_HZ: f64 = 5.0;
 
 /// Settings of the diagnosis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagnoseOptions {
-    /// Model substeps per sample.
+    /// Electromagnetic substeps per sample (Richardson-extrapolated with twice as many).
     pub substeps: usize,
-    /// Nelder-Mead iterations per parameter and refined start.
-    pub max_iterations: u64,
-    /// Highest excitation frequency the nominal parameters were identified on, Hz, when known:
-    /// the gap onset is then measured against the agreement reached there
-    /// ([`crate::breakdown`], gap-onset rule).
-    pub identified_up_to_hz: Option<f64>,
+    /// Fit settings.
+    pub fit: FitSettings,
 }
 
 impl Default for DiagnoseOptions {
     fn default() -> Self {
         DiagnoseOptions {
-            substeps: 2,
-            max_iterations: 30,
-            identified_up_to_hz: None,
+            substeps: 1,
+            fit: FitSettings::default(),
         }
     }
 }
@@ -86,10 +106,33 @@ pub struct ExperimentInfo {
     pub bias_a: f64,
     /// Samples before scoring starts.
     pub settle_samples: usize,
+    /// Quasi-static (in the "where" breakdown only).
+    pub quasi_static: bool,
     /// Held out (`true`) or training.
     pub held_out: bool,
     /// Frequency group index (sorted by frequency).
     pub frequency_group: usize,
+    /// Start state used for this experiment.
+    pub start_state: String,
+    /// `documented` (dataset.json) or `estimated`.
+    pub start_state_source: String,
+}
+
+/// The nuisances estimated (step 2).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Nuisance {
+    /// `hold` or `linear`.
+    pub current_between_samples: String,
+    /// RMS residual of the parameter file's model with a held and with a linear current, m.
+    pub rms_hold_m: f64,
+    /// See above.
+    pub rms_linear_m: f64,
+    /// Skew of the displacement channel, samples (positive: read after the current sample).
+    pub channel_skew_samples: f64,
+    /// Sensor offset, m.
+    pub sensor_offset_m: f64,
+    /// What was estimated, in words.
+    pub estimated: Vec<String>,
 }
 
 /// Held-out error by frequency band.
@@ -97,7 +140,7 @@ pub struct ExperimentInfo {
 pub struct BandError {
     /// Band (frequency group) centre, Hz.
     pub frequency_hz: f64,
-    /// RMS residual of the nominal model, m.
+    /// RMS residual of the refitted nominal model, m.
     pub before_m: f64,
     /// RMS residual with the candidate, m.
     pub after_m: f64,
@@ -108,19 +151,17 @@ pub struct BandError {
 /// One candidate's result.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct CandidateResult {
-    /// Effect name.
+    /// Effect name(s) (`nominal` for the refitted nominal model).
     pub effect: String,
-    /// Fitted parameters (physical units, names as in [`crate::candidates::parameters`]).
+    /// Fitted parameters (physical units), the refitted nominal constants included.
     pub parameters: BTreeMap<String, f64>,
-    /// Training RMS before / after, m.
-    pub training_rms_before_m: f64,
-    /// See above.
-    pub training_rms_after_m: f64,
-    /// Held-out RMS before (nominal), m.
+    /// Training RMS of the fit, m.
+    pub training_rms_m: f64,
+    /// Held-out RMS of the refitted nominal model, m.
     pub held_out_rms_before_m: f64,
-    /// Held-out RMS after (augmented), m.
+    /// Held-out RMS with the candidate, m.
     pub held_out_rms_after_m: f64,
-    /// `before / after` on held-out data.
+    /// `before / after`.
     pub held_out_reduction: f64,
     /// Held-out systematic gap before / after (noise removed), m.
     pub systematic_before_m: f64,
@@ -128,19 +169,21 @@ pub struct CandidateResult {
     pub systematic_after_m: f64,
     /// Held-out experiments whose error went down.
     pub improved_experiments: usize,
+    /// Held-out experiments made worse (RMS up by more than 5 % + 0.1 σ).
+    pub worse_experiments: usize,
     /// Held-out experiments.
     pub held_out_experiments: usize,
+    /// Held-out RMS of this fit with its (last) effect switched off, m: what remains of the
+    /// improvement without the effect itself.
+    pub knocked_out_rms_m: f64,
+    /// Effect parameters pinned at a physical limit of their range (an implausible explanation).
+    pub pinned: Vec<String>,
     /// Passes the significance criterion.
     pub significant: bool,
-    /// Errors per frequency band, all experiments.
+    /// Errors per frequency band, every dynamic experiment.
     pub per_band: Vec<BandError>,
     /// Model evaluations spent on the fit.
     pub evaluations: u64,
-    /// Second stage (only when the winner leaves a gap above 2σ): held-out RMS with this
-    /// candidate refitted on top of the winner, m.
-    pub held_out_rms_with_best_m: Option<f64>,
-    /// Parameters of the second-stage fit.
-    pub parameters_with_best: Option<BTreeMap<String, f64>>,
 }
 
 /// The machine-readable diagnosis (`diagnosis.json`).
@@ -152,24 +195,30 @@ pub struct Diagnosis {
     pub verdict_reason: String,
     /// Candidates whose held-out error is within 10 % of the winner's.
     pub ambiguous_with: Vec<String>,
-    /// Further effects found by the second stage: refitted on top of the winner, each removes at
-    /// least half of the remaining held-out systematic gap on at least 75 % of held-out experiments.
+    /// Further effects found by the second stage.
     pub additional_effects: Vec<String>,
+    /// The second stage: every other candidate refitted on top of the winner (empty when it did
+    /// not run), scored against the winner alone.
+    pub second_stage: Vec<CandidateResult>,
     /// The significance criterion, in words.
     pub criterion: String,
     /// Estimated white-noise level σ, m.
     pub noise_m: f64,
-    /// Measured displacement range over the dataset, m.
+    /// Measured displacement range over the dynamic experiments, m.
     pub displacement_range_m: f64,
-    /// Nominal RMS residual over all experiments, m.
+    /// RMS residual of the parameter file's model (with the nuisances), dynamic experiments, m.
     pub nominal_rms_m: f64,
-    /// Nominal systematic gap over all experiments, m.
+    /// Its systematic gap, m.
     pub nominal_systematic_m: f64,
+    /// The refitted nominal model (step 6).
+    pub refitted_nominal: CandidateResult,
+    /// The nuisances (step 2).
+    pub nuisance: Nuisance,
     /// Experiments and the split.
     pub experiments: Vec<ExperimentInfo>,
-    /// Candidates, best first (by held-out RMS after).
+    /// Candidates, best first (held-out RMS).
     pub ranking: Vec<CandidateResult>,
-    /// Where the nominal residual lies.
+    /// Where the parameter file's model disagrees.
     #[serde(rename = "where")]
     pub where_: Where,
 }
@@ -185,9 +234,9 @@ pub struct Trace {
     pub current_a: Vec<f64>,
     /// Measured displacement, m.
     pub measured_m: Vec<f64>,
-    /// Nominal model, m.
+    /// The parameter file's model with the nuisances, m.
     pub nominal_m: Vec<f64>,
-    /// Best candidate's model (nominal when the verdict is `none`), m.
+    /// The verdict's model (the refitted nominal one for `none` / `unexplained`), m.
     pub augmented_m: Vec<f64>,
 }
 
@@ -200,22 +249,121 @@ pub struct DiagnosisRun {
     pub traces: Vec<Trace>,
 }
 
-struct Prepared<'a> {
-    measurements: &'a [Measurement],
-    infos: Vec<ExperimentInfo>,
-    rate_hz: f64,
+/// The significance criterion in words (also in `diagnosis.json`).
+pub const CRITERION: &str = "every candidate refits R_eddy, xi, f0 and the channel skew on the \
+training experiments; one is named when, on held-out experiments (outside the training span in \
+frequency and amplitude), it removes at least 75 % of the refitted nominal model's systematic gap \
+energy (noise-corrected RMS gap after <= 0.5 x before) and makes at most a quarter of them worse; \
+`none` when the refitted nominal model's held-out systematic gap is below max(0.35 x noise, 0.05 % \
+of the motion), or below max(noise, 0.2 % of the motion) and no candidate explains it";
+
+/// The second stage pairs the best this many single candidates (six pairs).
+pub const PAIR_CANDIDATES: usize = 4;
+
+/// A single candidate that leaves at most this fraction of the refitted nominal gap (removes at
+/// least 36 % of its energy) is worth a second effect on top when it is not significant alone.
+pub const PROMISING: f64 = 0.8;
+
+/// Noise-corrected systematic part of an RMS error.
+pub fn systematic(rms: f64, noise: f64) -> f64 {
+    (rms * rms - noise * noise).max(0.0).sqrt()
 }
 
-/// The significance criterion in words (also in `diagnosis.json`).
-pub const CRITERION: &str = "a candidate is named when, on held-out experiments, it removes at \
-least 75 % of the systematic gap's energy (noise-corrected RMS gap after <= 0.5 x before) and \
-lowers the error on at least 75 % of the held-out experiments; `none` when the nominal model's \
-systematic gap is not above the white-noise level (RMS residual <= sqrt(2) x noise)";
+/// The gap below which the verdict is `none` unless a candidate explains it significantly
+/// (step 7).
+pub fn none_threshold(noise_m: f64, motion_m: f64) -> f64 {
+    noise_m.max(0.002 * motion_m)
+}
 
-/// Runs the diagnosis on `measurements` with the nominal parameters.
+/// The gap below which the verdict is `none` outright: the resolution of the systematic-gap
+/// estimate (a few % error in σ makes a spurious gap of ~0.3 σ) or 0.05 % of the motion.
+pub fn resolution_floor(noise_m: f64, motion_m: f64) -> f64 {
+    (0.35 * noise_m).max(0.0005 * motion_m)
+}
+
+/// Start choices tried when none is documented.
+const START_CHOICES: [StartState; 5] = [
+    StartState::Demagnetized,
+    StartState::SwitchOnDemagnetized,
+    StartState::NegativeSaturation,
+    StartState::PositiveSaturation,
+    StartState::Previous,
+];
+
+fn resolve_start(choice: StartState) -> ModelStart {
+    match choice {
+        StartState::SwitchOnDemagnetized => ModelStart::SwitchOnDemagnetized,
+        StartState::Demagnetized => ModelStart::Demagnetized,
+        StartState::NegativeSaturation => ModelStart::NegativeSaturation,
+        StartState::PositiveSaturation => ModelStart::PositiveSaturation,
+        StartState::Previous => ModelStart::Previous,
+    }
+}
+
+/// Pooled RMS of `pred + offset − measured` over the scored samples `settle..len`.
+pub(crate) fn pooled_rms(items: &[(&[f64], &[f64], usize)], offset: f64) -> f64 {
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for (pred, meas, settle) in items {
+        for k in *settle..pred.len().min(meas.len()) {
+            let r = pred[k] + offset - meas[k];
+            sum += r * r;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        0.0
+    } else {
+        (sum / n as f64).sqrt()
+    }
+}
+
+/// Least-squares offset `mean(measured − pred)` over the scored samples.
+pub(crate) fn offset_of(items: &[(&[f64], &[f64], usize)]) -> f64 {
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for (pred, meas, settle) in items {
+        for k in *settle..pred.len().min(meas.len()) {
+            sum += meas[k] - pred[k];
+            n += 1;
+        }
+    }
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
+}
+
+/// Golden-section minimization of `f` on `[a, b]`.
+fn golden(mut a: f64, mut b: f64, iterations: usize, f: impl Fn(f64) -> f64) -> f64 {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..iterations {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    0.5 * (a + b)
+}
+
+/// Runs the diagnosis on `measurements` with the nominal parameters; `documented` is the
+/// dataset's `dataset.json` when it has one.
 pub fn diagnose(
     params: &actuator_params::ActuatorParams,
     measurements: &[Measurement],
+    documented: Option<&DatasetInfo>,
     options: &DiagnoseOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<DiagnosisRun, String> {
@@ -227,13 +375,6 @@ pub fn diagnose(
             "the diagnosis needs at least 2 experiments (training and held-out), got {}",
             measurements.len()
         ));
-    }
-    if let Some(f) = options.identified_up_to_hz {
-        if !(f.is_finite() && f > 0.0) {
-            return Err(format!(
-                "option `identified_up_to_hz` must be a positive frequency in Hz, got {f}"
-            ));
-        }
     }
     let rate_hz = 1.0 / measurements[0].step_s;
     for m in measurements {
@@ -247,248 +388,427 @@ pub fn diagnose(
             ));
         }
     }
-    let core = crate::rig::to_core(params)?;
+    let step_s = 1.0 / rate_hz;
+    let core = magctl::params::ActuatorParameters::from_file(params, "nominal parameters")
+        .map_err(|e| e.to_string())?;
     let measure = PreisachMeasure::new(
         &core.preisach.weights_a_per_m,
         core.preisach.h_min_a_per_m,
         core.preisach.h_max_a_per_m,
     );
-    let nominal = Nominal::from_params(params);
-    let prepared = prepare(measurements, rate_hz)?;
-    let step_s = 1.0 / rate_hz;
-    let sim = |aug: &Augmentation, k: usize| {
-        simulate(
-            &nominal,
-            &measure,
-            aug,
-            &measurements[k].current_a,
-            step_s,
-            options.substeps,
-        )
+    let mut nominal = Nominal::from_params(params);
+    nominal.operating_field_a_per_m = nominal.c0_per_m
+        * measurements
+            .iter()
+            .flat_map(|m| m.current_a.iter())
+            .fold(0.0f64, |a, &i| a.max(i.abs()));
+    let nominal = nominal;
+    let mut infos = describe(measurements, rate_hz);
+    let file_name = |m: &Measurement| {
+        m.path
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
     };
-    let nominal_runs: Vec<Vec<f64>> = (0..measurements.len())
-        .into_par_iter()
-        .map(|k| sim(&Augmentation::default(), k))
-        .collect();
-    progress(1);
+    if let Some(doc) = documented {
+        let names: Vec<String> = measurements.iter().map(file_name).collect();
+        doc.check_files(
+            measurements[0]
+                .path
+                .parent()
+                .unwrap_or(std::path::Path::new(".")),
+            names.iter().map(|s| s.as_str()),
+        )
+        .map_err(|e| e.to_string())?;
+    }
+    let documented_start =
+        |k: usize| documented.and_then(|d| d.start_of(&file_name(&measurements[k])));
 
-    // Noise and nominal errors.
-    let residuals: Vec<Vec<f64>> = nominal_runs
-        .iter()
-        .zip(measurements)
-        .map(|(y, m)| m.displacement_m.iter().zip(y).map(|(a, b)| a - b).collect())
+    // ---- Step 2: nuisances, with the parameter file's model.
+    let file_electro = Electro::nominal(nominal.eddy_resistance_ohm);
+    let file_mech = Mech::nominal(nominal.damping_ratio, nominal.resonance_hz);
+    let setup_for = |interpolation| ModelSetup {
+        nominal: &nominal,
+        measure: &measure,
+        step_s,
+        interpolation,
+        substeps: options.substeps,
+    };
+    let probe_lens: Vec<usize> = (0..measurements.len())
+        .map(|k| (infos[k].settle_samples + options.fit.max_fit_samples).min(measurements[k].len()))
         .collect();
-    let mut sigmas: Vec<f64> = residuals
+    let documented_starts: Vec<Option<StartState>> =
+        (0..measurements.len()).map(documented_start).collect();
+    progress(1);
+    let dynamic: Vec<usize> = (0..measurements.len())
+        .filter(|&k| !infos[k].quasi_static)
+        .collect();
+    let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
+    let data_for = |starts: &[(ModelStart, bool)]| experiment_data(measurements, &settles, starts);
+    if dynamic.len() < 2 {
+        return Err(format!(
+            "the diagnosis needs at least 2 dynamic experiments (fundamental >= {QUASI_STATIC_BELOW_HZ} Hz), got {}",
+            dynamic.len()
+        ));
+    }
+    let NuisanceEstimate {
+        start_sets,
+        plan,
+        interpolation,
+        skew,
+        rms_hold,
+        rms_linear,
+    } = estimate_nuisances(
+        &setup_for(Interpolation::Linear),
+        measurements,
+        &settles,
+        &dynamic,
+        &probe_lens,
+        &documented_starts,
+        &file_electro,
+        &file_mech,
+    );
+    for (k, info) in infos.iter_mut().enumerate() {
+        match documented_starts[k] {
+            Some(s) => {
+                info.start_state = s.name().into();
+                info.start_state_source = "documented".into();
+            }
+            None => {
+                info.start_state = start_sets[plan].0.name().into();
+                info.start_state_source = "estimated".into();
+            }
+        }
+    }
+    progress(1);
+    let setup = setup_for(interpolation);
+    let data = data_for(&start_sets[plan].1);
+    let nuisance_mech = Mech {
+        skew_samples: skew,
+        ..file_mech
+    };
+    let everything: Vec<usize> = (0..measurements.len()).collect();
+    let file_preds: Vec<Vec<f64>> =
+        setup.predict_all(&file_electro, &nuisance_mech, &data, &everything);
+    let dyn_items: Vec<(&[f64], &[f64], usize)> = dynamic
         .iter()
-        .zip(&prepared.infos)
-        .map(|(r, info)| signal::white_noise_sigma(&r[info.settle_samples..]))
+        .map(|&k| (file_preds[k].as_slice(), data[k].measured_m, data[k].settle))
+        .collect();
+    let sensor_offset = offset_of(&dyn_items);
+    let nominal_rms = pooled_rms(&dyn_items, sensor_offset);
+
+    // ---- Step 3: noise.
+    let mut sigmas: Vec<f64> = dynamic
+        .iter()
+        .map(|&k| {
+            let r: Vec<f64> = (data[k].settle..measurements[k].len())
+                .map(|i| measurements[k].displacement_m[i] - file_preds[k][i])
+                .collect();
+            signal::white_noise_sigma(&r)
+        })
         .collect();
     sigmas.sort_by(f64::total_cmp);
     let noise_m = sigmas[sigmas.len() / 2];
-    let all: Vec<usize> = (0..measurements.len()).collect();
-    let nominal_rms = pooled_rms(&prepared, &nominal_runs, &all);
+    let range = displacement_range(measurements, &dynamic);
     let nominal_systematic = systematic(nominal_rms, noise_m);
-    let range = displacement_range(measurements);
-    let where_ = breakdown::analyse(
-        measurements,
-        &nominal_runs,
-        &prepared.infos,
-        noise_m,
-        prepared.rate_hz,
-        options.identified_up_to_hz,
-    );
+    let mut estimated = vec![
+        format!(
+            "current between samples: {} (RMS residual {:.3e} m held, {:.3e} m linear)",
+            interpolation.name(),
+            rms_hold,
+            rms_linear
+        ),
+        format!("channel skew: {skew:+.3} samples (displacement read after the current sample when positive)"),
+        format!("sensor offset: {:.3e} m", sensor_offset),
+    ];
+    let estimated_starts = infos
+        .iter()
+        .filter(|i| i.start_state_source == "estimated")
+        .count();
+    if estimated_starts > 0 {
+        estimated.push(format!(
+            "start state `{}` of {estimated_starts} of {} experiments (not documented in dataset.json; \
+             each candidate re-chooses it)",
+            start_sets[plan].0.name(),
+            infos.len()
+        ));
+    }
+    let nuisance = Nuisance {
+        current_between_samples: interpolation.name().into(),
+        rms_hold_m: rms_hold,
+        rms_linear_m: rms_linear,
+        channel_skew_samples: skew,
+        sensor_offset_m: sensor_offset,
+        estimated,
+    };
 
-    let training: Vec<usize> = all
+    // ---- Step 4: where.
+    let shifted: Vec<Vec<f64>> = file_preds
+        .iter()
+        .map(|p| p.iter().map(|v| v + sensor_offset).collect())
+        .collect();
+    let where_ = breakdown::analyse(measurements, &shifted, &infos, noise_m, rate_hz);
+
+    // ---- Step 5: split.
+    split(&mut infos, &dynamic)?;
+    let training: Vec<usize> = dynamic
         .iter()
         .copied()
-        .filter(|&k| !prepared.infos[k].held_out)
+        .filter(|&k| !infos[k].held_out)
         .collect();
-    let held_out: Vec<usize> = all
+    let held_out: Vec<usize> = dynamic
         .iter()
         .copied()
-        .filter(|&k| prepared.infos[k].held_out)
+        .filter(|&k| infos[k].held_out)
         .collect();
+    let plan_data: Vec<Vec<ExperimentData<'_>>> =
+        start_sets.iter().map(|(_, st)| data_for(st)).collect();
+    let fitter = PlanFitter {
+        setup,
+        plan_data: &plan_data,
+        training: &training,
+        first_plan: plan,
+        settings: &options.fit,
+    };
 
-    // Fit every candidate (in parallel).
-    let mut ranking: Vec<(CandidateResult, Augmentation)> = EffectName::LIBRARY
+    // ---- Step 6: fits.
+    let common_start = vec![
+        nominal.eddy_resistance_ohm,
+        nominal.damping_ratio,
+        nominal.resonance_hz,
+        skew,
+    ];
+    let refit = fitter.fit(&Candidate::nominal(), std::slice::from_ref(&common_start));
+    progress(1);
+    // Each effect starts from the refitted constants and from the file's (the refitted ones may
+    // have stretched to mimic the effect).
+    let commons = [refit.fitted.values[..4].to_vec(), common_start.clone()];
+    let fitted: Vec<PlanFit> = EffectName::LIBRARY
         .par_iter()
         .map(|&effect| {
-            let (values, evaluations) = fit_candidate(
-                effect, &nominal, &prepared, &training, &sim, options, noise_m, progress,
-            );
-            let aug = candidates::augmentation(effect, &values);
-            let runs: Vec<Vec<f64>> = (0..measurements.len())
-                .into_par_iter()
-                .map(|k| sim(&aug, k))
-                .collect();
-            let specs = candidates::parameters(effect, &nominal);
-            let parameters = specs
-                .iter()
-                .zip(&values)
-                .map(|(s, v)| (s.name.to_string(), *v))
-                .collect();
-            let before_h = pooled_rms(&prepared, &nominal_runs, &held_out);
-            let after_h = pooled_rms(&prepared, &runs, &held_out);
-            let improved = held_out
-                .iter()
-                .filter(|&&k| {
-                    pooled_rms(&prepared, &runs, &[k]) < pooled_rms(&prepared, &nominal_runs, &[k])
+            let starts: Vec<Vec<f64>> = candidates::effect_starts(effect, &nominal)
+                .into_iter()
+                .flat_map(|s| {
+                    commons
+                        .iter()
+                        .map(move |c| c.iter().copied().chain(s.clone()).collect())
                 })
-                .count();
-            let sys_before = systematic(before_h, noise_m);
-            let sys_after = systematic(after_h, noise_m);
-            let significant =
-                sys_after <= 0.5 * sys_before && improved as f64 >= 0.75 * held_out.len() as f64;
-            let per_band = bands(&prepared, &nominal_runs, &runs);
-            (
-                CandidateResult {
-                    effect: effect.name().to_string(),
-                    parameters,
-                    training_rms_before_m: pooled_rms(&prepared, &nominal_runs, &training),
-                    training_rms_after_m: pooled_rms(&prepared, &runs, &training),
-                    held_out_rms_before_m: before_h,
-                    held_out_rms_after_m: after_h,
-                    held_out_reduction: before_h / after_h.max(1e-300),
-                    systematic_before_m: sys_before,
-                    systematic_after_m: sys_after,
-                    improved_experiments: improved,
-                    held_out_experiments: held_out.len(),
-                    significant,
-                    per_band,
-                    evaluations,
-                    held_out_rms_with_best_m: None,
-                    parameters_with_best: None,
-                },
-                aug,
-            )
+                .collect();
+            let f = fitter.fit(&Candidate::single(effect), &starts);
+            progress(1);
+            f
         })
         .collect();
-    ranking.sort_by(|a, b| {
+
+    // ---- Step 7: score.
+    let scorer = Scorer {
+        setup,
+        fitter: Some(&fitter),
+        plan_data: &plan_data,
+        dynamic: &dynamic,
+        training: &training,
+        held_out: &held_out,
+        infos: &infos,
+        noise_m,
+    };
+    let base = scorer.predict(&refit);
+    let refit_result = scorer.result(&refit, &base, &base);
+    let mut ranked: Vec<(CandidateResult, PlanFit, Scored)> = fitted
+        .into_par_iter()
+        .map(|f| {
+            let s = scorer.predict(&f);
+            (scorer.result(&f, &s, &base), f, s)
+        })
+        .collect();
+    ranked.sort_by(|a, b| {
         a.0.held_out_rms_after_m
             .total_cmp(&b.0.held_out_rms_after_m)
     });
-
-    // Second stage: when the winner leaves a gap above twice the noise, refit every other
-    // candidate on top of it (forward selection) and rank the rest by the combined held-out error.
+    progress(1);
+    let gap0 = refit_result.systematic_before_m;
+    let threshold = none_threshold(noise_m, range);
+    let floor = resolution_floor(noise_m, range);
+    let winner = ranked.iter().position(|r| r.0.significant);
     let mut additional_effects = Vec::new();
-    if ranking[0].0.significant && ranking[0].0.systematic_after_m > 2.0 * noise_m {
-        let best_aug = ranking[0].1;
-        let best_runs: Vec<Vec<f64>> = (0..measurements.len())
-            .into_par_iter()
-            .map(|k| sim(&best_aug, k))
+    let mut second_stage = Vec::new();
+    // Second stage: when the best single candidate leaves a gap (or none is significant but one
+    // explains a good part: two strong effects), every pair among the best single candidates is
+    // fitted (a wrong first pick among confusable effects must not hide the true pair).
+    let best_single = winner.unwrap_or(0);
+    let run_pairs = match winner {
+        Some(w) => ranked[w].0.systematic_after_m > (2.0 * noise_m).max(0.1 * gap0),
+        None => ranked
+            .iter()
+            .any(|r| r.0.pinned.is_empty() && r.0.systematic_after_m <= PROMISING * gap0),
+    };
+    let mut pair_winner: Option<(CandidateResult, Scored)> = None;
+    if gap0 > floor && run_pairs {
+        let tops: Vec<usize> = (0..ranked.len())
+            .filter(|&i| ranked[i].0.pinned.is_empty())
+            .take(PAIR_CANDIDATES)
             .collect();
-        let base_rms = pooled_rms(&prepared, &best_runs, &held_out);
-        let base_sys = systematic(base_rms, noise_m);
-        let stacked = |a: &Augmentation, k: usize| sim(&merge(&best_aug, a), k);
-        let second: Vec<(usize, f64, BTreeMap<String, f64>, bool)> = (1..ranking.len())
-            .into_par_iter()
-            .map(|r| {
-                let effect = EffectName::parse(&ranking[r].0.effect).expect("library name");
-                let (values, _) = fit_candidate(
-                    effect, &nominal, &prepared, &training, &stacked, options, noise_m, progress,
-                );
-                let aug = candidates::augmentation(effect, &values);
-                let runs: Vec<Vec<f64>> = (0..measurements.len())
-                    .into_par_iter()
-                    .map(|k| stacked(&aug, k))
-                    .collect();
-                let after = pooled_rms(&prepared, &runs, &held_out);
-                let improved = held_out
-                    .iter()
-                    .filter(|&&k| {
-                        pooled_rms(&prepared, &runs, &[k]) < pooled_rms(&prepared, &best_runs, &[k])
-                    })
-                    .count();
-                let significant = systematic(after, noise_m) <= 0.5 * base_sys
-                    && improved as f64 >= 0.75 * held_out.len() as f64;
-                let specs = candidates::parameters(effect, &nominal);
-                let params = specs
-                    .iter()
-                    .zip(&values)
-                    .map(|(s, v)| (s.name.to_string(), *v))
-                    .collect();
-                (r, after, params, significant)
-            })
-            .collect();
-        for (r, after, params, significant) in second {
-            ranking[r].0.held_out_rms_with_best_m = Some(after);
-            ranking[r].0.parameters_with_best = Some(params);
-            if significant {
-                additional_effects.push(ranking[r].0.effect.clone());
+        let mut combos = Vec::new();
+        for (a, &i) in tops.iter().enumerate() {
+            for &j in &tops[a + 1..] {
+                combos.push((i, j));
             }
         }
-        ranking[1..].sort_by(|a, b| {
-            let key = |c: &CandidateResult| c.held_out_rms_with_best_m.unwrap_or(f64::MAX);
-            key(&a.0).total_cmp(&key(&b.0))
+        let base_scored = ranked[best_single].2.clone();
+        let base_gap = ranked[best_single].0.systematic_after_m;
+        let mut pairs: Vec<(CandidateResult, PlanFit, Scored)> = combos
+            .par_iter()
+            .filter_map(|&(i, j)| {
+                let (first, second) = (
+                    EffectName::parse(&ranked[i].0.effect).ok()?,
+                    EffectName::parse(&ranked[j].0.effect).ok()?,
+                );
+                let cand = Candidate {
+                    effects: vec![first, second],
+                };
+                // Start from the first's fit plus the second's own values, and from the
+                // second's fit plus the first's.
+                let own = |r: usize| ranked[r].1.fitted.values[4..].to_vec();
+                let starts = vec![
+                    ranked[i]
+                        .1
+                        .fitted
+                        .values
+                        .iter()
+                        .copied()
+                        .chain(own(j))
+                        .collect::<Vec<f64>>(),
+                    ranked[j].1.fitted.values[..4]
+                        .iter()
+                        .copied()
+                        .chain(own(i))
+                        .chain(own(j))
+                        .collect(),
+                ];
+                let f = fitter.fit_from(&cand, &starts, ranked[i].1.plan);
+                let sc = scorer.predict(&f);
+                Some((scorer.result(&f, &sc, &base_scored), f, sc))
+            })
+            .collect();
+        pairs.sort_by(|a, b| {
+            a.0.held_out_rms_after_m
+                .total_cmp(&b.0.held_out_rms_after_m)
         });
-        additional_effects.sort_by_key(|e| ranking.iter().position(|(c, _)| &c.effect == e));
+        if let Some((r, f, sc)) = pairs.first() {
+            let singles: Vec<&PlanFit> = ranked.iter().map(|r| &r.1).collect();
+            let accepted = r.pinned.is_empty()
+                && r.systematic_after_m <= 0.5 * base_gap.min(gap0)
+                && r.worse_experiments as f64 <= 0.25 * r.held_out_experiments as f64
+                && scorer.necessary(f, 0, &singles, r.systematic_after_m);
+            if accepted {
+                let mut names: Vec<&str> = r.effect.split('+').collect();
+                // The verdict is the effect that matters more: its single fit is the better one.
+                names.sort_by_key(|n| {
+                    ranked
+                        .iter()
+                        .position(|x| x.0.effect == *n)
+                        .unwrap_or(usize::MAX)
+                });
+                additional_effects.push(names.get(1).copied().unwrap_or_default().to_string());
+                let mut r = r.clone();
+                r.effect = names.join("+");
+                pair_winner = Some((r, sc.clone()));
+            }
+        }
+        second_stage = pairs.into_iter().map(|p| p.0).collect();
     }
-
-    let (verdict, reason, best_aug) = if nominal_systematic <= noise_m {
+    let explained = pair_winner.is_some() || winner.is_some();
+    let (verdict, reason, best_preds) = if gap0 <= floor || (gap0 <= threshold && !explained) {
         (
             "none".to_string(),
             format!(
-                "the nominal model fits within the noise: RMS residual {:.3e} m against a noise \
-                 level of {:.3e} m (systematic gap {:.3e} m <= noise)",
-                nominal_rms, noise_m, nominal_systematic
+                "the nominal model with R_eddy, xi, f0 refitted ({:.2} ohm, {:.4}, {:.1} Hz) fits the \
+                 held-out experiments within the noise: systematic gap {:.3e} m <= {:.3e} m \
+                 (max of the noise level and 0.2 % of the motion)",
+                refit.fitted.values[0], refit.fitted.values[1], refit.fitted.values[2], gap0, threshold
             ),
-            Augmentation::default(),
+            base.offset_preds(),
+        )
+    } else if let Some((pair, pair_scored)) = &pair_winner {
+        (
+            pair.effect
+                .split('+')
+                .next()
+                .unwrap_or_default()
+                .to_string(),
+            format!(
+                "adding {} together cuts the held-out error of the refitted nominal model from \
+                 {:.3e} m to {:.3e} m (systematic gap {:.3e} -> {:.3e} m); each effect is needed \
+                 (without either, refitted, the gap is at least twice as large)",
+                pair.effect.replace('+', " and "),
+                refit_result.held_out_rms_after_m,
+                pair.held_out_rms_after_m,
+                gap0,
+                pair.systematic_after_m,
+            ),
+            pair_scored.offset_preds(),
+        )
+    } else if let Some(w) = winner {
+        let c = &ranked[w].0;
+        (
+            c.effect.clone(),
+            format!(
+                "adding {} cuts the held-out error of the refitted nominal model from {:.3e} m to \
+                 {:.3e} m ({:.1}x; systematic gap {:.3e} -> {:.3e} m) and makes {}/{} held-out \
+                 experiments worse",
+                c.effect,
+                c.held_out_rms_before_m,
+                c.held_out_rms_after_m,
+                c.held_out_reduction,
+                c.systematic_before_m,
+                c.systematic_after_m,
+                c.worse_experiments,
+                c.held_out_experiments
+            ),
+            ranked[w].2.offset_preds(),
         )
     } else {
-        match ranking.iter().find(|(c, _)| c.significant) {
-            Some((c, aug)) if std::ptr::eq(c, &ranking[0].0) => (
-                c.effect.clone(),
-                format!(
-                    "adding {} cuts the held-out error from {:.3e} m to {:.3e} m ({:.1}x) and \
-                     improves {}/{} held-out experiments",
-                    c.effect,
-                    c.held_out_rms_before_m,
-                    c.held_out_rms_after_m,
-                    c.held_out_reduction,
-                    c.improved_experiments,
-                    c.held_out_experiments
-                ),
-                *aug,
+        let best = &ranked[0].0;
+        (
+            "unexplained".to_string(),
+            format!(
+                "no candidate removes the gap: the best, {}, leaves a held-out systematic gap of \
+                 {:.3e} m of the refitted nominal model's {:.3e} m ({:.0} %) and makes {}/{} \
+                 held-out experiments worse",
+                best.effect,
+                best.systematic_after_m,
+                best.systematic_before_m,
+                100.0 * best.systematic_after_m / best.systematic_before_m.max(1e-300),
+                best.worse_experiments,
+                best.held_out_experiments
             ),
-            _ => {
-                let best = &ranking[0].0;
-                (
-                    "unexplained".to_string(),
-                    format!(
-                        "no candidate removes the gap: the best, {}, leaves a held-out systematic \
-                         gap of {:.3e} m of {:.3e} m ({:.0} %) and improves {}/{} held-out \
-                         experiments",
-                        best.effect,
-                        best.systematic_after_m,
-                        best.systematic_before_m,
-                        100.0 * best.systematic_after_m / best.systematic_before_m.max(1e-300),
-                        best.improved_experiments,
-                        best.held_out_experiments
-                    ),
-                    ranking[0].1,
-                )
-            }
-        }
+            base.offset_preds(),
+        )
     };
-    let ambiguous_with = if verdict != "none" && verdict != "unexplained" {
-        let best = ranking[0].0.held_out_rms_after_m;
-        ranking[1..]
-            .iter()
-            .filter(|(c, _)| c.held_out_rms_after_m <= 1.1 * best)
-            .map(|(c, _)| c.effect.clone())
-            .collect()
-    } else {
-        Vec::new()
+    let ambiguous_with = match winner {
+        Some(w) if verdict != "none" => {
+            let best = ranked[w].0.held_out_rms_after_m;
+            ranked
+                .iter()
+                .enumerate()
+                .filter(|(i, r)| {
+                    *i != w && r.0.significant && r.0.held_out_rms_after_m <= 1.1 * best
+                })
+                .map(|(_, r)| r.0.effect.clone())
+                .collect()
+        }
+        _ => Vec::new(),
     };
     let traces = (0..measurements.len())
-        .into_par_iter()
         .map(|k| Trace {
-            name: prepared.infos[k].name.clone(),
+            name: infos[k].name.clone(),
             rate_hz,
             current_a: measurements[k].current_a.clone(),
             measured_m: measurements[k].displacement_m.clone(),
-            nominal_m: nominal_runs[k].clone(),
-            augmented_m: sim(&best_aug, k),
+            nominal_m: shifted[k].clone(),
+            augmented_m: best_preds
+                .get(&k)
+                .cloned()
+                .unwrap_or_else(|| shifted[k].clone()),
         })
         .collect();
     Ok(DiagnosisRun {
@@ -497,49 +817,461 @@ pub fn diagnose(
             verdict_reason: reason,
             ambiguous_with,
             additional_effects,
+            second_stage,
             criterion: CRITERION.to_string(),
             noise_m,
             displacement_range_m: range,
             nominal_rms_m: nominal_rms,
             nominal_systematic_m: nominal_systematic,
-            experiments: prepared.infos.clone(),
-            ranking: ranking.into_iter().map(|(c, _)| c).collect(),
+            refitted_nominal: refit_result,
+            nuisance,
+            experiments: infos,
+            ranking: ranked.into_iter().map(|r| r.0).collect(),
             where_,
         },
         traces,
     })
 }
 
-/// Both augmentations at once (candidates use disjoint fields; `a` wins on overlap).
-fn merge(a: &Augmentation, b: &Augmentation) -> Augmentation {
-    Augmentation {
-        amplifier_corner_hz: a.amplifier_corner_hz.or(b.amplifier_corner_hz),
-        eddy: a.eddy.or(b.eddy),
-        sensor_corner_hz: a.sensor_corner_hz.or(b.sensor_corner_hz),
-        sensor_delay_s: a.sensor_delay_s.or(b.sensor_delay_s),
-        susceptibility: a.susceptibility.or(b.susceptibility),
-        thermal: a.thermal.or(b.thermal),
-        delta_e: a.delta_e.or(b.delta_e),
-        load: a.load.or(b.load),
+/// The start plans (step 2): documented starts are fixed; the others follow one dataset-wide
+/// plan (a bench starts its experiments one way), each plan a start per experiment and whether
+/// it continues the previous experiment (its coil temperature carries over too). The first
+/// experiment of a chain starts demagnetized.
+pub(crate) fn start_sets(
+    documented: &[Option<StartState>],
+) -> Vec<(StartState, Vec<(ModelStart, bool)>)> {
+    let plans: Vec<StartState> = if documented.iter().all(|s| s.is_some()) {
+        vec![StartState::Demagnetized]
+    } else {
+        START_CHOICES.to_vec()
+    };
+    plans
+        .iter()
+        .map(|&plan| {
+            let starts = (0..documented.len())
+                .map(|k| {
+                    let choice = documented[k].unwrap_or(plan);
+                    let chained = choice == StartState::Previous && k > 0;
+                    let start = if choice == StartState::Previous && k == 0 {
+                        ModelStart::Demagnetized
+                    } else {
+                        resolve_start(choice)
+                    };
+                    (start, chained)
+                })
+                .collect();
+            (plan, starts)
+        })
+        .collect()
+}
+
+/// What step 2 estimates.
+pub(crate) struct NuisanceEstimate {
+    /// Every start plan.
+    pub start_sets: Vec<(StartState, Vec<(ModelStart, bool)>)>,
+    /// The plan chosen.
+    pub plan: usize,
+    /// The current between samples.
+    pub interpolation: Interpolation,
+    /// The channel skew, samples.
+    pub skew: f64,
+    /// RMS residual with a held current, m.
+    pub rms_hold: f64,
+    /// RMS residual with a linear current, m.
+    pub rms_linear: f64,
+}
+
+/// Step 2 with the model `electro`, `mech`: the start plan, then the current between samples, the
+/// skew by golden section on the mechanical stage (one electromagnetic run per plan and
+/// interpolation), over the first `probe_lens` samples of the `dynamic` experiments.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn estimate_nuisances(
+    linear_setup: &ModelSetup<'_>,
+    measurements: &[Measurement],
+    settles: &[usize],
+    dynamic: &[usize],
+    probe_lens: &[usize],
+    documented: &[Option<StartState>],
+    electro: &Electro,
+    mech: &Mech,
+) -> NuisanceEstimate {
+    let start_sets = start_sets(documented);
+    let estimate = |interp: Interpolation, starts: &[(ModelStart, bool)]| -> (f64, f64) {
+        let setup = ModelSetup {
+            interpolation: interp,
+            ..*linear_setup
+        };
+        let data = experiment_data(measurements, settles, starts);
+        let lens: Vec<usize> = dynamic.iter().map(|&k| probe_lens[k]).collect();
+        let runs = setup.electro_runs(electro, &data, dynamic, &lens);
+        let rms_at = |skew: f64| -> f64 {
+            let m = Mech {
+                skew_samples: skew,
+                ..*mech
+            };
+            let preds: Vec<Vec<f64>> = dynamic
+                .par_iter()
+                .zip(&runs)
+                .map(|(&k, run)| {
+                    run_mech(
+                        setup.nominal,
+                        &m,
+                        run,
+                        probe_lens[k],
+                        setup.step_s,
+                        (0.0, 0.0),
+                    )
+                })
+                .collect();
+            let items: Vec<(&[f64], &[f64], usize)> = dynamic
+                .iter()
+                .zip(&preds)
+                .map(|(&k, p)| (p.as_slice(), data[k].measured_m, data[k].settle))
+                .collect();
+            pooled_rms(&items, offset_of(&items))
+        };
+        let skew = golden(-1.0, 1.0, 24, rms_at);
+        (rms_at(skew), skew)
+    };
+    let plan_fits: Vec<(f64, f64)> = start_sets
+        .par_iter()
+        .map(|(_, starts)| estimate(Interpolation::Linear, starts))
+        .collect();
+    let plan = (0..start_sets.len())
+        .min_by(|&a, &b| plan_fits[a].0.total_cmp(&plan_fits[b].0))
+        .unwrap_or(0);
+    let (rms_linear, skew_linear) = plan_fits[plan];
+    let (rms_hold, skew_hold) = estimate(Interpolation::Hold, &start_sets[plan].1);
+    let (interpolation, skew) = if rms_hold < rms_linear {
+        (Interpolation::Hold, skew_hold)
+    } else {
+        (Interpolation::Linear, skew_linear)
+    };
+    NuisanceEstimate {
+        start_sets,
+        plan,
+        interpolation,
+        skew,
+        rms_hold,
+        rms_linear,
     }
 }
 
-/// Noise-corrected systematic part of an RMS error.
-pub fn systematic(rms: f64, noise: f64) -> f64 {
-    (rms * rms - noise * noise).max(0.0).sqrt()
+pub(crate) fn experiment_data<'a>(
+    measurements: &'a [Measurement],
+    settles: &[usize],
+    starts: &[(ModelStart, bool)],
+) -> Vec<ExperimentData<'a>> {
+    let mut out: Vec<ExperimentData<'a>> = Vec::with_capacity(measurements.len());
+    for k in 0..measurements.len() {
+        let (start, chained) = &starts[k];
+        let heat_history = match out.last() {
+            Some(prev) if *chained => {
+                let mut h = prev.heat_history.clone();
+                h.push(prev.current_a);
+                h
+            }
+            _ => Vec::new(),
+        };
+        out.push(ExperimentData {
+            current_a: &measurements[k].current_a,
+            measured_m: &measurements[k].displacement_m,
+            settle: settles[k],
+            start: start.clone(),
+            heat_history,
+        });
+    }
+    out
 }
 
-fn displacement_range(measurements: &[Measurement]) -> f64 {
-    let (lo, hi) = measurements
+/// A candidate's predictions on every dynamic experiment, with its training offset.
+#[derive(Debug, Clone)]
+struct Scored {
+    preds: BTreeMap<usize, Vec<f64>>,
+    offset: f64,
+}
+
+impl Scored {
+    fn offset_preds(&self) -> BTreeMap<usize, Vec<f64>> {
+        self.preds
+            .iter()
+            .map(|(&k, p)| (k, p.iter().map(|v| v + self.offset).collect()))
+            .collect()
+    }
+}
+
+/// A candidate fitted with its own start plan.
+#[derive(Debug, Clone)]
+pub(crate) struct PlanFit {
+    pub fitted: Fitted,
+    pub plan: usize,
+}
+
+/// Fits candidates on the training experiments, each with the start plan that suits it best.
+pub(crate) struct PlanFitter<'a> {
+    pub setup: ModelSetup<'a>,
+    pub plan_data: &'a [Vec<ExperimentData<'a>>],
+    pub training: &'a [usize],
+    pub first_plan: usize,
+    pub settings: &'a FitSettings,
+}
+
+impl PlanFitter<'_> {
+    /// Fits from the nuisance stage's plan, then tries the other plans at the fitted values and
+    /// refits with the best if it is better by more than 1 %.
+    pub fn fit(&self, candidate: &Candidate, starts: &[Vec<f64>]) -> PlanFit {
+        self.fit_from(candidate, starts, self.first_plan)
+    }
+
+    pub fn fit_from(&self, candidate: &Candidate, starts: &[Vec<f64>], plan: usize) -> PlanFit {
+        let first = fit(
+            self.setup,
+            &self.plan_data[plan],
+            self.training,
+            candidate,
+            starts,
+            self.settings,
+        );
+        if self.plan_data.len() <= 1 {
+            return PlanFit {
+                fitted: first,
+                plan,
+            };
+        }
+        let probes: Vec<(usize, f64)> = (0..self.plan_data.len())
+            .into_par_iter()
+            .filter(|&p| p != plan)
+            .map(|p| {
+                let data = &self.plan_data[p];
+                let (e, m) = first.model();
+                let lens: Vec<usize> = self
+                    .training
+                    .iter()
+                    .map(|&k| {
+                        (data[k].settle + self.settings.max_fit_samples)
+                            .min(data[k].current_a.len())
+                    })
+                    .collect();
+                let preds = self.setup.predict(&e, &m, data, self.training, &lens);
+                let items: Vec<(&[f64], &[f64], usize)> = self
+                    .training
+                    .iter()
+                    .zip(&preds)
+                    .map(|(&k, p)| (p.as_slice(), data[k].measured_m, data[k].settle))
+                    .collect();
+                (p, pooled_rms(&items, offset_of(&items)))
+            })
+            .collect();
+        match probes.iter().min_by(|a, b| a.1.total_cmp(&b.1)) {
+            Some(&(p, rms)) if rms < 0.99 * first.training_rms_m => {
+                let again = fit(
+                    self.setup,
+                    &self.plan_data[p],
+                    self.training,
+                    candidate,
+                    std::slice::from_ref(&first.values),
+                    self.settings,
+                );
+                if again.training_rms_m < first.training_rms_m {
+                    PlanFit {
+                        fitted: again,
+                        plan: p,
+                    }
+                } else {
+                    PlanFit {
+                        fitted: first,
+                        plan,
+                    }
+                }
+            }
+            _ => PlanFit {
+                fitted: first,
+                plan,
+            },
+        }
+    }
+}
+
+struct Scorer<'a> {
+    setup: ModelSetup<'a>,
+    fitter: Option<&'a PlanFitter<'a>>,
+    plan_data: &'a [Vec<ExperimentData<'a>>],
+    dynamic: &'a [usize],
+    training: &'a [usize],
+    held_out: &'a [usize],
+    infos: &'a [ExperimentInfo],
+    noise_m: f64,
+}
+
+impl Scorer<'_> {
+    fn predict(&self, f: &PlanFit) -> Scored {
+        let (e, m) = f.fitted.model();
+        let data = &self.plan_data[f.plan];
+        let preds: BTreeMap<usize, Vec<f64>> = self
+            .dynamic
+            .iter()
+            .copied()
+            .zip(self.setup.predict_all(&e, &m, data, self.dynamic))
+            .collect();
+        let items: Vec<(&[f64], &[f64], usize)> = self
+            .training
+            .iter()
+            .map(|&k| (preds[&k].as_slice(), data[k].measured_m, data[k].settle))
+            .collect();
+        let offset = offset_of(&items);
+        Scored { preds, offset }
+    }
+
+    /// Both effects of a pair fit are needed: with either switched off and the rest refitted
+    /// (from the pair's values and from that effect's single fit), the held-out gap is at least
+    /// twice `gap`.
+    fn necessary(&self, pair: &PlanFit, _base: usize, singles: &[&PlanFit], gap: f64) -> bool {
+        let Some(fitter) = self.fitter else {
+            return true;
+        };
+        let f = &pair.fitted;
+        (0..f.candidate.effects.len()).all(|drop| {
+            let kept = f.without_effect(drop);
+            let effect = kept.candidate.effects.first().copied();
+            let mut starts = vec![kept.values.clone()];
+            if let Some(single) = singles
+                .iter()
+                .find(|s| s.fitted.candidate.effects.first().copied() == effect)
+            {
+                starts.push(single.fitted.values.clone());
+            }
+            let refit = fitter.fit_from(&kept.candidate, &starts, pair.plan);
+            let remaining =
+                systematic(self.rms(&self.predict(&refit), self.held_out), self.noise_m);
+            remaining >= 2.0 * gap
+        })
+    }
+
+    fn rms(&self, s: &Scored, which: &[usize]) -> f64 {
+        let items: Vec<(&[f64], &[f64], usize)> = which
+            .iter()
+            .map(|&k| {
+                let x = &self.plan_data[0][k];
+                (s.preds[&k].as_slice(), x.measured_m, x.settle)
+            })
+            .collect();
+        pooled_rms(&items, s.offset)
+    }
+
+    fn result(&self, plan_fit: &PlanFit, s: &Scored, base: &Scored) -> CandidateResult {
+        let f = &plan_fit.fitted;
+        let before = self.rms(base, self.held_out);
+        let after = self.rms(s, self.held_out);
+        let (mut improved, mut worse) = (0, 0);
+        for &k in self.held_out {
+            let (b, a) = (self.rms(base, &[k]), self.rms(s, &[k]));
+            if a < b {
+                improved += 1;
+            }
+            if a > 1.05 * b + 0.1 * self.noise_m {
+                worse += 1;
+            }
+        }
+        let sys_before = systematic(before, self.noise_m);
+        let sys_after = systematic(after, self.noise_m);
+        let effects = f.candidate.effects.len();
+        let knocked_out = if effects == 0 {
+            before
+        } else {
+            let k = PlanFit {
+                fitted: f.knocked_out(effects - 1),
+                plan: plan_fit.plan,
+            };
+            self.rms(&self.predict(&k), self.held_out)
+        };
+        let pinned: Vec<String> = f.pinned().into_iter().map(String::from).collect();
+        let passes = |knocked_out: f64| {
+            effects > 0
+                && pinned.is_empty()
+                && sys_after <= 0.5 * sys_before.min(systematic(knocked_out, self.noise_m))
+                && worse as f64 <= 0.25 * self.held_out.len() as f64
+        };
+        // Confirmation: the knocked-out model refitted from this fit's own values must not
+        // reach what the candidate reaches (else the candidate only found a better optimum of
+        // the shared parameters).
+        let (knocked_out, significant) = match self.fitter {
+            Some(fitter) if passes(knocked_out) => {
+                let k = f.knocked_out(effects - 1);
+                let again =
+                    fitter.fit_from(&k.candidate, std::slice::from_ref(&k.values), plan_fit.plan);
+                let refitted = self.rms(&self.predict(&again), self.held_out);
+                let worst = knocked_out.min(refitted);
+                (worst, passes(worst))
+            }
+            _ => (knocked_out, passes(knocked_out)),
+        };
+        let groups = self
+            .dynamic
+            .iter()
+            .map(|&k| self.infos[k].frequency_group)
+            .max()
+            .unwrap_or(0)
+            + 1;
+        let per_band = (0..groups)
+            .filter_map(|g| {
+                let which: Vec<usize> = self
+                    .dynamic
+                    .iter()
+                    .copied()
+                    .filter(|&k| self.infos[k].frequency_group == g)
+                    .collect();
+                if which.is_empty() {
+                    return None;
+                }
+                Some(BandError {
+                    frequency_hz: which
+                        .iter()
+                        .map(|&k| self.infos[k].fundamental_hz)
+                        .sum::<f64>()
+                        / which.len() as f64,
+                    before_m: self.rms(base, &which),
+                    after_m: self.rms(s, &which),
+                    held_out: self.infos[which[0]].held_out,
+                })
+            })
+            .collect();
+        CandidateResult {
+            effect: f.candidate.name(),
+            parameters: f
+                .specs
+                .iter()
+                .zip(&f.values)
+                .map(|(s, v)| (s.name.to_string(), *v))
+                .collect(),
+            training_rms_m: f.training_rms_m,
+            held_out_rms_before_m: before,
+            held_out_rms_after_m: after,
+            held_out_reduction: before / after.max(1e-300),
+            systematic_before_m: sys_before,
+            systematic_after_m: sys_after,
+            improved_experiments: improved,
+            worse_experiments: worse,
+            held_out_experiments: self.held_out.len(),
+            knocked_out_rms_m: knocked_out,
+            pinned,
+            significant,
+            per_band,
+            evaluations: f.evaluations,
+        }
+    }
+}
+
+fn displacement_range(measurements: &[Measurement], which: &[usize]) -> f64 {
+    let (lo, hi) = which
         .iter()
-        .flat_map(|m| m.displacement_m.iter())
+        .flat_map(|&k| measurements[k].displacement_m.iter())
         .fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
     (hi - lo).max(0.0)
 }
 
-/// Reads fundamental, amplitude and bias from each current; groups and splits.
-fn prepare(measurements: &[Measurement], rate_hz: f64) -> Result<Prepared<'_>, String> {
-    let mut infos: Vec<ExperimentInfo> = measurements
+/// Fundamental, amplitude, bias, settling of each record.
+pub(crate) fn describe(measurements: &[Measurement], rate_hz: f64) -> Vec<ExperimentInfo> {
+    measurements
         .iter()
         .map(|m| {
             let n = m.len();
@@ -560,13 +1292,19 @@ fn prepare(measurements: &[Measurement], rate_hz: f64) -> Result<Prepared<'_>, S
                 amplitude_a: 0.5 * (hi - lo),
                 bias_a: m.current_a.iter().sum::<f64>() / n as f64,
                 settle_samples: settle,
+                quasi_static: f < QUASI_STATIC_BELOW_HZ,
                 held_out: false,
                 frequency_group: 0,
+                start_state: String::new(),
+                start_state_source: String::new(),
             }
         })
-        .collect();
-    // Frequency groups (within 5 %), sorted.
-    let mut order: Vec<usize> = (0..infos.len()).collect();
+        .collect()
+}
+
+/// Groups the dynamic experiments and marks the held-out ones (step 5).
+fn split(infos: &mut [ExperimentInfo], dynamic: &[usize]) -> Result<(), String> {
+    let mut order: Vec<usize> = dynamic.to_vec();
     order.sort_by(|&a, &b| infos[a].fundamental_hz.total_cmp(&infos[b].fundamental_hz));
     let mut group = 0usize;
     let mut anchor = infos[order[0]].fundamental_hz;
@@ -577,223 +1315,38 @@ fn prepare(measurements: &[Measurement], rate_hz: f64) -> Result<Prepared<'_>, S
         }
         infos[k].frequency_group = group;
     }
-    let frequency_groups = group + 1;
-    // Amplitude groups (within 10 %).
-    let mut amps: Vec<f64> = infos.iter().map(|i| i.amplitude_a).collect();
+    let top_frequency = group;
+    let mut amps: Vec<f64> = dynamic.iter().map(|&k| infos[k].amplitude_a).collect();
     amps.sort_by(f64::total_cmp);
-    let mut amp_anchors: Vec<f64> = Vec::new();
+    let mut anchors: Vec<f64> = Vec::new();
     for a in amps {
-        if amp_anchors.last().is_none_or(|&l| a > l * 1.10 + 1e-12) {
-            amp_anchors.push(a);
+        if anchors.last().is_none_or(|&l| a > l * 1.10 + 1e-12) {
+            anchors.push(a);
         }
     }
-    let amp_group = |a: f64| {
-        amp_anchors
-            .iter()
-            .rposition(|&l| a >= l - 1e-12)
-            .unwrap_or(0)
-    };
-    if frequency_groups >= 3 {
-        for i in infos.iter_mut() {
-            i.held_out = i.frequency_group % 3 == 1;
-        }
-    } else if amp_anchors.len() >= 2 {
-        for i in infos.iter_mut() {
-            i.held_out = amp_group(i.amplitude_a) % 2 == 1;
-        }
-    } else {
+    let amp_group = |a: f64| anchors.iter().rposition(|&l| a >= l - 1e-12).unwrap_or(0);
+    let top_amp = anchors.len() - 1;
+    for &k in dynamic {
+        let i = &mut infos[k];
+        let top = amp_group(i.amplitude_a) == top_amp;
+        i.held_out = if top_frequency >= 1 {
+            i.frequency_group == top_frequency
+                || (top_amp >= 2 && top)
+                || (top_amp == 1 && top && i.frequency_group % 2 == 1)
+        } else if top_amp >= 1 {
+            amp_group(i.amplitude_a) % 2 == 1
+        } else {
+            false
+        };
+    }
+    if top_frequency == 0 && top_amp == 0 {
         for (r, &k) in order.iter().enumerate() {
             infos[k].held_out = r % 2 == 1;
         }
     }
-    if infos.iter().all(|i| i.held_out) || infos.iter().all(|i| !i.held_out) {
+    let held = dynamic.iter().filter(|&&k| infos[k].held_out).count();
+    if held == 0 || held == dynamic.len() {
         return Err("could not split the experiments into training and held-out sets".into());
     }
-    Ok(Prepared {
-        measurements,
-        infos,
-        rate_hz,
-    })
-}
-
-/// Pooled RMS residual over the scored samples of experiments `which`.
-fn pooled_rms(p: &Prepared, runs: &[Vec<f64>], which: &[usize]) -> f64 {
-    let mut sum = 0.0;
-    let mut count = 0usize;
-    for &k in which {
-        let m = &p.measurements[k].displacement_m;
-        let s = p.infos[k].settle_samples;
-        for (a, b) in m[s..].iter().zip(&runs[k][s..]) {
-            sum += (a - b) * (a - b);
-        }
-        count += m.len() - s;
-    }
-    if count == 0 {
-        0.0
-    } else {
-        (sum / count as f64).sqrt()
-    }
-}
-
-fn bands(p: &Prepared, before: &[Vec<f64>], after: &[Vec<f64>]) -> Vec<BandError> {
-    let groups = p.infos.iter().map(|i| i.frequency_group).max().unwrap_or(0) + 1;
-    (0..groups)
-        .filter_map(|g| {
-            let which: Vec<usize> = (0..p.infos.len())
-                .filter(|&k| p.infos[k].frequency_group == g)
-                .collect();
-            if which.is_empty() {
-                return None;
-            }
-            let f = which
-                .iter()
-                .map(|&k| p.infos[k].fundamental_hz)
-                .sum::<f64>()
-                / which.len() as f64;
-            Some(BandError {
-                frequency_hz: f,
-                before_m: pooled_rms(p, before, &which),
-                after_m: pooled_rms(p, after, &which),
-                held_out: p.infos[which[0]].held_out,
-            })
-        })
-        .collect()
-}
-
-struct FitProblem<'a, F: Fn(&Augmentation, usize) -> Vec<f64> + Sync> {
-    effect: EffectName,
-    specs: Vec<candidates::ParamSpec>,
-    prepared: &'a Prepared<'a>,
-    training: &'a [usize],
-    sim: &'a F,
-    scale_m: f64,
-    evaluations: &'a AtomicU64,
-    progress: &'a (dyn Fn(u64) + Sync),
-}
-
-impl<F: Fn(&Augmentation, usize) -> Vec<f64> + Sync> FitProblem<'_, F> {
-    fn values(&self, z: &[f64]) -> Vec<f64> {
-        self.specs.iter().zip(z).map(|(s, &z)| s.value(z)).collect()
-    }
-
-    fn evaluate(&self, z: &[f64]) -> f64 {
-        let aug = candidates::augmentation(self.effect, &self.values(z));
-        let runs: Vec<(usize, Vec<f64>)> = self
-            .training
-            .par_iter()
-            .map(|&k| (k, (self.sim)(&aug, k)))
-            .collect();
-        let mut all = vec![Vec::new(); self.prepared.infos.len()];
-        for (k, r) in runs {
-            all[k] = r;
-        }
-        self.evaluations.fetch_add(1, Ordering::Relaxed);
-        (self.progress)(1);
-        let rms = pooled_rms(self.prepared, &all, self.training) / self.scale_m;
-        // Excursions outside the normalized box are clamped by `values`; a small penalty keeps
-        // the simplex from drifting there.
-        let outside: f64 = z.iter().map(|&v| (v - v.clamp(0.0, 1.0)).powi(2)).sum();
-        let cost = rms * rms + outside;
-        if cost.is_finite() {
-            cost
-        } else {
-            f64::MAX
-        }
-    }
-}
-
-impl<F: Fn(&Augmentation, usize) -> Vec<f64> + Sync> CostFunction for FitProblem<'_, F> {
-    type Param = Vec<f64>;
-    type Output = f64;
-    fn cost(&self, z: &Self::Param) -> Result<f64, ArgminError> {
-        Ok(self.evaluate(z))
-    }
-}
-
-/// Fits one candidate on the training experiments; returns its physical parameter values and
-/// the number of model evaluations.
-///
-/// The simplex stops after `max_iterations` per parameter, or earlier once the costs at its
-/// vertices differ by less than `10⁻³ (σ / scale)²` (standard deviation), σ the white-noise
-/// level: the training RMS² then varies across the simplex by a thousandth of the noise's
-/// energy, far below what the held-out scoring can resolve.
-#[allow(clippy::too_many_arguments)]
-fn fit_candidate<F: Fn(&Augmentation, usize) -> Vec<f64> + Sync>(
-    effect: EffectName,
-    nominal: &Nominal,
-    prepared: &Prepared,
-    training: &[usize],
-    sim: &F,
-    options: &DiagnoseOptions,
-    noise_m: f64,
-    progress: &(dyn Fn(u64) + Sync),
-) -> (Vec<f64>, u64) {
-    let evaluations = AtomicU64::new(0);
-    let scale_m = displacement_range(prepared.measurements).max(1e-12);
-    let problem = FitProblem {
-        effect,
-        specs: candidates::parameters(effect, nominal),
-        prepared,
-        training,
-        sim,
-        scale_m,
-        evaluations: &evaluations,
-        progress,
-    };
-    let mut starts: Vec<(f64, Vec<f64>)> = candidates::starts(effect, nominal)
-        .into_iter()
-        .map(|z| (problem.evaluate(&z), z))
-        .collect();
-    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut best = starts[0].clone();
-    // Refine the best start, and the second one too when it is nearly as good (within 50 %):
-    // a second basin worth a look.
-    let refine = if starts.len() > 1 && starts[1].0 <= 1.5 * starts[0].0 {
-        2
-    } else {
-        1
-    };
-    for (_, z0) in starts.iter().take(refine) {
-        let dim = z0.len();
-        let mut simplex = vec![z0.clone()];
-        for i in 0..dim {
-            let mut v = z0.clone();
-            v[i] += if v[i] > 0.85 { -0.12 } else { 0.12 };
-            simplex.push(v);
-        }
-        let tolerance = (1e-3 * (noise_m / scale_m).powi(2)).max(1e-15);
-        let Ok(solver) = NelderMead::new(simplex).with_sd_tolerance(tolerance) else {
-            continue;
-        };
-        let problem = problem_ref(&problem);
-        let result = Executor::new(problem, solver)
-            .configure(|s| s.max_iters(options.max_iterations * dim as u64))
-            .run();
-        if let Ok(res) = result {
-            let state = res.state();
-            if let Some(z) = state.get_best_param() {
-                let c = state.get_best_cost();
-                if c < best.0 {
-                    best = (c, z.clone());
-                }
-            }
-        }
-    }
-    let values = problem.values(&best.1);
-    (values, evaluations.load(Ordering::Relaxed))
-}
-
-fn problem_ref<'a, F: Fn(&Augmentation, usize) -> Vec<f64> + Sync>(
-    p: &FitProblem<'a, F>,
-) -> FitProblem<'a, F> {
-    FitProblem {
-        effect: p.effect,
-        specs: p.specs.clone(),
-        prepared: p.prepared,
-        training: p.training,
-        sim: p.sim,
-        scale_m: p.scale_m,
-        evaluations: p.evaluations,
-        progress: p.progress,
-    }
+    Ok(())
 }

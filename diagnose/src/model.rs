@@ -1,32 +1,50 @@
-//! The nominal model (paper eqs (4)-(5)) with optional augmentations, one per candidate effect,
-//! simulated on a measured current sequence.
+//! The diagnosis model: the nominal model (paper eqs (4)-(5)) with optional augmentations, one
+//! per candidate effect, and the nuisances of a recording, simulated on a measured current.
 //!
-//! The hysteresis is the core's f32 Preisach operator (`magctl::preisach::PreisachMeasure`, exact
-//! monotone solve of `a·h + Γ(h) = r`); the other states are f64. Each sample period is split into
-//! `substeps` substeps (default 2, see [`simulate`]): the current is held over the sample (what the DAC does); with
-//! `amplifier_bandwidth` the coil current follows it through a first-order lag, integrated
-//! exactly, and the eddy step uses its exact average over the substep.
+//! It runs in two stages so that a fit can reuse the expensive one:
 //!
-//! **Eddy step** (backward Euler, as in `magctl::model::eddy`, L-stable, monotone): with
-//! `w = (1 + χ_r) H + Γ(H)` (reversible part `χ_r`, zero in the nominal model),
-//! `(1 + χ_r + δ c1 / c0) H⁺ + Γ(H⁺) = w + δ c1 Ī`. With the eddy ladder (one extra path `R_b`,
-//! `τ_b`, see `host_tests::reference::rig`): `w⁺ - w = D`, `D = δ c1a (Ī - H⁺/c0 - J⁺)`,
-//! `J⁺ = (τ_b J + D / c1b) / (τ_b + δ)` (backward Euler on `τ_b J' = w'/c1b - J`); eliminating `J⁺`
-//! gives `D = δ c1a (Ī - H⁺/c0 - τ_b J / (τ_b + δ)) / κ`, `κ = 1 + δ c1a / (c1b (τ_b + δ))`, again
-//! one monotone solve with slope `1 + χ_r + δ c1a / (κ c0)`.
+//! 1. **Electromagnetic stage** ([`run_electro`]; parameters [`Electro`]): command → coil current
+//!    (held or linear between samples; `amplifier_bandwidth`: second-order low-pass) → eddy
+//!    currents and hysteresis → `M` at every substep. The hysteresis is the core's f32 Preisach
+//!    operator (`magctl::preisach`, exact monotone solve of `a·h + Γ(h) = r`). The eddy step is
+//!    backward Euler on the integral form (8), `w = H + M`, L-stable and monotone:
+//!    `(1 + χ_r + δ/(κ c0 Z_hf)) H⁺ + Γ(H⁺) = w_rev + (δ/κ)(Ī − τ q/(τ + δ))/Z_hf` where the
+//!    eddy impedance `Z = 1/c1` may depend on frequency (`eddy_frequency_dependence`:
+//!    `Z(s) = Z_hf + (Z_dc − Z_hf)/(1 + sτ)`, one extra path; `q` its state,
+//!    `τ q' = (Z_dc − Z_hf) w' − q`, `κ = (τ Z_hf + δ Z_dc)/((τ + δ) Z_hf)`) and `χ_r` is the
+//!    slope of the reversible term at the start of the step (`reversible_magnetization`:
+//!    `M_rev = χ_r H / (1 + |H/H_s|^p)^(1/p)`, slope `χ_r (1 + |H/H_s|^p)^(−1/p − 1)`, linearized
+//!    over each step). The stage runs
+//!    with `S` and `2S` substeps per sample and returns the Richardson combination
+//!    `2 M(2S) − M(S)` at the `S` substep ends: backward Euler's error is first order in the
+//!    step, so the combination is second order (measured against the bench plant without
+//!    effects: see `tests/`).
+//! 2. **Mechanical stage** ([`run_mech`]; parameters [`Mech`]): `u = (1 − g θ) (l_m λ_s/M_s²) M²
+//!    + e θ` (`thermal_drift`: the coil `τ θ' = I² − θ` heating the rod `τ_l φ' = θ − φ`, a gain
+//!    loss and an expansion with `φ`, both starting from the previous experiment's end for a
+//!    chained start), the rod eq. (5)
+//!    (`delta_e_effect`: `ω² = ω0² (1 + d₁ m² + d₂ m⁴)`; `mechanical_load`: a second mass on a
+//!    spring, the sensor on it) by RK4 with `u` linear over each substep, the sensor
+//!    (`sensor_dynamics`: second-order low-pass, then a delay), and the reading at
+//!    `t_k + skew − delay` by cubic Hermite interpolation of the sensor's output and its rate.
 //!
-//! **Mechanics**: eq. (5) (with the Δ-E stiffness, the thermal scale of `u` and the load mode when
-//! on) by classical RK4 per substep, `u` and `M` linear over the substep (first-order hold, as the
-//! core's exact step assumes). `ω0 δ ≈ 0.06` at 40 kHz: RK4's error is ~1e-8 relative.
+//! **Start.** [`ModelStart`] mirrors what a bench documents (`maglab_identify::dataset_info`): the
+//! core's AC-demagnetized memory at 0 A (switched on at `t = 0`, or brought slowly to the first
+//! command), saturation, or the memory the previous experiment of the same simulated chain left
+//! (the caller runs the chain in order with the same parameters).
 //!
-//! **Sensor** (`sensor_dynamics`): first-order low-pass and delay on the sampled output.
-//!
-//! The output sample `k` is the displacement at `t_k`, before the current of sample `k` acts, the
-//! convention of the rig and of a logger that samples input and output together.
+//! Output sample `k` is the displacement the sensor reads at `t_k`, before the current of
+//! sample `k` acts on a held command (the recording convention of `maglab rig`).
 
-use host_tests::reference::rig::sensor_chain;
 use magctl::preisach::{PreisachMeasure, PreisachState};
 use std::f64::consts::PI;
+
+/// Staircase capacity of the model's Preisach memory (deep histories such as a chain of
+/// experiments never merge).
+pub const CAPACITY: usize = 256;
+
+/// The model's Preisach memory.
+pub type Memory = PreisachState<CAPACITY>;
 
 /// μ0, H/m.
 const MU0: f64 = 4.0e-7 * PI;
@@ -36,18 +54,23 @@ const MU0: f64 = 4.0e-7 * PI;
 pub struct Nominal {
     /// `c0`, 1/m.
     pub c0_per_m: f64,
-    /// `R_eddy`, Ω.
-    pub eddy_resistance_ohm: f64,
     /// `μ0 N A`, so that `c1 = R / (μ0 N A)`.
     pub mu0_n_a: f64,
-    /// `f0`, Hz.
-    pub resonance_hz: f64,
-    /// `ξ`.
-    pub damping_ratio: f64,
     /// `l_m λ_s / M_s²`, m per (A/m)².
     pub displacement_per_m2_m: f64,
     /// `M_s`, A/m.
     pub saturation_a_per_m: f64,
+    /// `l_m λ_s`, m.
+    pub stroke_m: f64,
+    /// The file's `R_eddy`, Ω.
+    pub eddy_resistance_ohm: f64,
+    /// The file's `ξ`.
+    pub damping_ratio: f64,
+    /// The file's `f0`, Hz.
+    pub resonance_hz: f64,
+    /// The largest field the data reach, `c0 max |I|`, A/m (the grid's top until data are
+    /// seen): some candidate ranges scale with it.
+    pub operating_field_a_per_m: f64,
 }
 
 impl Nominal {
@@ -56,234 +79,496 @@ impl Nominal {
         let a = &p.actuator;
         Nominal {
             c0_per_m: a.coil_factor_per_m,
-            eddy_resistance_ohm: a.eddy_resistance_ohm,
             mu0_n_a: MU0 * a.coil_turns * a.rod_area_m2,
-            resonance_hz: a.resonance_hz,
-            damping_ratio: a.damping_ratio,
             displacement_per_m2_m: a.rod_length_m * a.saturation_magnetostriction
                 / (a.saturation_magnetization_a_per_m * a.saturation_magnetization_a_per_m),
             saturation_a_per_m: a.saturation_magnetization_a_per_m,
+            stroke_m: a.rod_length_m * a.saturation_magnetostriction,
+            eddy_resistance_ohm: a.eddy_resistance_ohm,
+            damping_ratio: a.damping_ratio,
+            resonance_hz: a.resonance_hz,
+            operating_field_a_per_m: p
+                .preisach
+                .h_max_a_per_m
+                .abs()
+                .max(p.preisach.h_min_a_per_m.abs()),
         }
     }
 }
 
-/// Eddy-current ladder replacing the single `R_eddy`: effective resistance `dc_ohm` at low
-/// frequency rising to `hf_ohm` above `corner_hz` (main path `hf_ohm`, extra path
-/// `1 / (1/dc - 1/hf)` with corner `corner_hz`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EddyLadder {
-    /// Effective R_eddy at low frequency, Ω.
-    pub dc_ohm: f64,
-    /// Effective R_eddy at high frequency, Ω (`>= dc_ohm`).
-    pub hf_ohm: f64,
-    /// Corner of the extra path, Hz.
-    pub corner_hz: f64,
+/// What the current does between its samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Interpolation {
+    /// Held (a DAC).
+    Hold,
+    /// Linear to the next sample.
+    Linear,
 }
 
-/// Second mechanical mode.
+impl Interpolation {
+    /// Interface name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Interpolation::Hold => "hold",
+            Interpolation::Linear => "linear",
+        }
+    }
+}
+
+/// How a simulated experiment starts.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelStart {
+    /// AC-demagnetized at 0 A, at rest; the command switches on at `t = 0`.
+    SwitchOnDemagnetized,
+    /// AC-demagnetized at 0 A, then slowly to the first command, at rest.
+    Demagnetized,
+    /// Negative saturation, then slowly to the first command.
+    NegativeSaturation,
+    /// Positive saturation, then slowly to the first command.
+    PositiveSaturation,
+    /// Where the previous experiment of the same simulated chain ended (no reset between
+    /// experiments): its memory, then the first command applied at `t = 0`.
+    Previous,
+}
+
+/// Parameters of the electromagnetic stage.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Load {
-    /// `m2 / m1`.
-    pub mass_ratio: f64,
-    /// Coupling frequency, Hz.
-    pub coupling_hz: f64,
-    /// Coupling damping ratio.
+pub struct Electro {
+    /// `R_eddy` at low frequency, Ω.
+    pub eddy_resistance_ohm: f64,
+    /// Second-order low-pass on the current: `(natural frequency Hz, damping ratio)`.
+    pub amplifier: Option<(f64, f64)>,
+    /// One extra eddy path: `(R_hf / R_dc, corner Hz)`.
+    pub eddy_path: Option<(f64, f64)>,
+    /// Reversible term: `(χ_r, H_s A/m, shape p)`.
+    pub reversible: Option<(f64, f64, f64)>,
+}
+
+impl Electro {
+    /// Only `R_eddy`.
+    pub fn nominal(eddy_resistance_ohm: f64) -> Self {
+        Electro {
+            eddy_resistance_ohm,
+            amplifier: None,
+            eddy_path: None,
+            reversible: None,
+        }
+    }
+}
+
+/// Parameters of the mechanical stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mech {
+    /// `ξ`.
     pub damping_ratio: f64,
+    /// `f0`, Hz.
+    pub resonance_hz: f64,
+    /// Thermal drift: `(τ s, rod lag τ_l s, gain loss per A², strain per A² as a fraction of
+    /// the stroke)`.
+    pub thermal: Option<(f64, f64, f64, f64)>,
+    /// Δ-E: `(d₁, d₂)` in `ω² = ω0² (1 + d₁ m² + d₂ m⁴)`, `m = M/M_s`.
+    pub delta_e: Option<(f64, f64)>,
+    /// Load mode: `(mass ratio, coupling Hz, damping ratio)`.
+    pub load: Option<(f64, f64, f64)>,
+    /// Sensor: `(natural frequency Hz, damping ratio, delay s)`.
+    pub sensor: Option<(f64, f64, f64)>,
+    /// The displacement channel is read `skew` samples after the current's sample time.
+    pub skew_samples: f64,
 }
 
-/// The augmentations (all `None`: the nominal model).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Augmentation {
-    /// Amplifier corner, Hz.
-    pub amplifier_corner_hz: Option<f64>,
-    /// Eddy ladder.
-    pub eddy: Option<EddyLadder>,
-    /// Sensor low-pass corner, Hz.
-    pub sensor_corner_hz: Option<f64>,
-    /// Sensor delay, s.
-    pub sensor_delay_s: Option<f64>,
-    /// Reversible susceptibility `χ_r`.
-    pub susceptibility: Option<f64>,
-    /// Thermal drift: `(τ_th [s], g [1/A²])`, output scale `1 - g θ`, `τ_th θ' = I² - θ`.
-    pub thermal: Option<(f64, f64)>,
-    /// Δ-E: `ω² = ω0² (1 + d (M/M_s)²)`.
-    pub delta_e: Option<f64>,
-    /// Load mode.
-    pub load: Option<Load>,
-}
-
-/// Simulates the (augmented) model on the current sequence `currents_a` sampled at `step_s`,
-/// starting from the demagnetized memory at equilibrium under the first current. Returns the
-/// displacement at every sample, m.
-///
-/// The result is the Richardson extrapolation `2 y(2S) - y(S)` of runs with `S = substeps` and
-/// `2S` substeps per sample: the backward-Euler step's error is first order in the substep (checked
-/// against the rig's converged RK4 reference: halving the substep halves the error), so the
-/// combination cancels the leading term at 3S substeps' cost. Measured against the rig without
-/// effects (exact Preisach operator, RK4 with 20 substeps), 0.2/0.4 A sines on 0.5 A at
-/// 20-400 Hz: RMS difference ≤ 0.15 % of the motion with S = 1, ≤ 0.022 % with S = 2 (the
-/// default), ≤ 0.007 % with S = 4.
-pub fn simulate(
-    nominal: &Nominal,
-    measure: &PreisachMeasure,
-    aug: &Augmentation,
-    currents_a: &[f64],
-    step_s: f64,
-    substeps: usize,
-) -> Vec<f64> {
-    let coarse = simulate_plant(nominal, measure, aug, currents_a, step_s, substeps.max(1));
-    let fine = simulate_plant(
-        nominal,
-        measure,
-        aug,
-        currents_a,
-        step_s,
-        2 * substeps.max(1),
-    );
-    let mut y: Vec<f64> = fine.iter().zip(&coarse).map(|(f, c)| 2.0 * f - c).collect();
-    if let Some(corner) = aug.sensor_corner_hz {
-        y = sensor_chain::low_pass(&y, step_s, corner);
-    }
-    if let Some(delay) = aug.sensor_delay_s {
-        y = sensor_chain::delay(&y, step_s, delay);
-    }
-    y
-}
-
-/// One run with `substeps` substeps per sample, without the sensor (the displacement the sensor
-/// sees), m.
-pub fn simulate_plant(
-    nominal: &Nominal,
-    measure: &PreisachMeasure,
-    aug: &Augmentation,
-    currents_a: &[f64],
-    step_s: f64,
-    substeps: usize,
-) -> Vec<f64> {
-    let n = currents_a.len();
-    let mut out = Vec::with_capacity(n);
-    if n == 0 {
-        return out;
-    }
-    let s = substeps.max(1);
-    let delta = step_s / s as f64;
-    let chi = aug.susceptibility.unwrap_or(0.0);
-    // Eddy coefficients.
-    let (c1a, path) = match aug.eddy {
-        Some(l) => {
-            let c1a = l.hf_ohm / nominal.mu0_n_a;
-            let g_extra = 1.0 / l.dc_ohm - 1.0 / l.hf_ohm;
-            if g_extra > 0.0 {
-                let c1b = 1.0 / (g_extra * nominal.mu0_n_a);
-                (c1a, Some((c1b, 1.0 / (2.0 * PI * l.corner_hz))))
-            } else {
-                (c1a, None)
-            }
+impl Mech {
+    /// Only `ξ` and `f0`.
+    pub fn nominal(damping_ratio: f64, resonance_hz: f64) -> Self {
+        Mech {
+            damping_ratio,
+            resonance_hz,
+            thermal: None,
+            delta_e: None,
+            load: None,
+            sensor: None,
+            skew_samples: 0.0,
         }
-        None => (nominal.eddy_resistance_ohm / nominal.mu0_n_a, None),
-    };
-    let c0 = nominal.c0_per_m;
-    let coef = eddy_coefficients(delta, c1a, c0, chi, path);
-    let amp_decay = aug.amplifier_corner_hz.map(|f| {
-        let tau = 1.0 / (2.0 * PI * f);
-        let e = (-delta / tau).exp();
-        (e, tau / delta * (1.0 - e))
-    });
-    let thermal = aug.thermal.map(|(tau, g)| ((-delta / tau).exp(), g));
-    let om0 = 2.0 * PI * nominal.resonance_hz;
-    let damping = 2.0 * nominal.damping_ratio * om0;
-    let ms2 = nominal.saturation_a_per_m * nominal.saturation_a_per_m;
-    let omega2 = |m: f64| match aug.delta_e {
-        Some(d) => om0 * om0 * (1.0 + d * m * m / ms2),
-        None => om0 * om0,
-    };
-    let load = aug.load.map(|l| {
-        let w2 = 2.0 * PI * l.coupling_hz;
-        (l.mass_ratio, w2 * w2, 2.0 * l.damping_ratio * w2)
-    });
+    }
+}
 
-    // Initial state: equilibrium under the first current from the demagnetized memory.
-    let mut preisach: PreisachState<64> = measure.demagnetized();
-    let i0 = currents_a[0];
-    let h0 = c0 * i0;
-    let g0 = measure
-        .apply(&mut preisach, h0 as f32)
-        .unwrap_or_else(|_| measure.output_a_per_m(&preisach)) as f64;
-    let mut h = h0;
-    let mut m = g0 + chi * h0;
-    let mut w = h + m;
-    let mut j = 0.0f64;
-    let mut i_coil = i0;
-    let mut theta = 0.0f64;
-    let scale_of = |theta: f64| match thermal {
-        Some((_, g)) => 1.0 - g * theta,
+/// The electromagnetic stage's result for one experiment.
+#[derive(Debug, Clone)]
+pub struct ElectroRun {
+    /// Substeps per sample of the result.
+    pub substeps: usize,
+    /// `M` at the start and at every substep end (`1 + n S` values), A/m.
+    pub m_a_per_m: Vec<f64>,
+    /// Mean squared coil current over every substep (`n S` values), A².
+    pub current_sq_a2: Vec<f64>,
+    /// The memory at the end (for a following experiment).
+    pub end_memory: Box<Memory>,
+}
+
+/// The reversible term and its slope.
+fn reversible(rev: Option<(f64, f64, f64)>, h: f64) -> (f64, f64) {
+    match rev {
+        Some((chi, hs, p)) if chi > 0.0 => {
+            let q = 1.0 + (h / hs).abs().powf(p);
+            (chi * h * q.powf(-1.0 / p), chi * q.powf(-1.0 / p - 1.0))
+        }
+        _ => (0.0, 0.0),
+    }
+}
+
+/// The memory a start puts the model in (before the move to the first command); a chained
+/// start without a previous memory starts demagnetized.
+fn start_memory(
+    measure: &PreisachMeasure,
+    start: &ModelStart,
+    previous: Option<&Memory>,
+) -> Memory {
+    match (start, previous) {
+        (ModelStart::NegativeSaturation, _) => measure.negative_saturation(),
+        (ModelStart::PositiveSaturation, _) => measure.positive_saturation(),
+        (ModelStart::Previous, Some(m)) => m.clone(),
+        _ => measure.demagnetized(),
+    }
+}
+
+/// One electromagnetic run with `s` substeps per sample: `(M at substep ends, mean I², end memory)`.
+#[allow(clippy::too_many_arguments)]
+fn electro_once(
+    nominal: &Nominal,
+    measure: &PreisachMeasure,
+    e: &Electro,
+    currents_a: &[f64],
+    step_s: f64,
+    interp: Interpolation,
+    start: &ModelStart,
+    previous: Option<&Memory>,
+    s: usize,
+) -> (Vec<f64>, Vec<f64>, Memory) {
+    let n = currents_a.len();
+    let delta = step_s / s as f64;
+    let c0 = nominal.c0_per_m;
+    let z_dc = nominal.mu0_n_a / e.eddy_resistance_ohm.max(1e-9);
+    // Eddy impedance: Z_hf and the extra path (module docs).
+    let (z_hf, path) = match e.eddy_path {
+        Some((ratio, corner)) => {
+            let z_hf = z_dc / ratio;
+            let tau = 1.0 / (2.0 * PI * corner);
+            (z_hf, Some((tau, z_dc - z_hf)))
+        }
+        None => (z_dc, None),
+    };
+    let kappa = match path {
+        Some((tau, dz)) => (tau * z_hf + delta * (z_hf + dz)) / ((tau + delta) * z_hf),
         None => 1.0,
     };
-    let mut u = scale_of(theta) * nominal.displacement_per_m2_m * m * m;
-    let (mut y1, mut v1, mut y2, mut v2) = (u, 0.0f64, u, 0.0f64);
+    let drive = delta / (kappa * z_hf);
+    let q_keep = path.map_or(0.0, |(tau, _)| tau / (tau + delta));
+    // Amplifier: exact discretization of i'' = ω²(c − i) − 2ζω i' for c linear over a substep.
+    let amp = e
+        .amplifier
+        .map(|(f, zeta)| SecondOrder::new(2.0 * PI * f, zeta, delta));
+    let mut memory = start_memory(measure, start, previous);
+    let first = currents_a[0];
+    let (i_start, h0) = match start {
+        ModelStart::SwitchOnDemagnetized => (0.0, 0.0),
+        _ => (first, c0 * first),
+    };
+    let g0 = match measure.apply(&mut memory, h0 as f32) {
+        Ok(m) => m as f64,
+        Err(_) => measure.output_a_per_m(&memory) as f64,
+    };
+    let mut h = h0;
+    let mut m = g0 + reversible(e.reversible, h).0;
+    let mut q = 0.0f64;
+    let mut amp_state = [i_start, 0.0f64];
+    let mut m_out = Vec::with_capacity(1 + n * s);
+    let mut i2_out = Vec::with_capacity(n * s);
+    m_out.push(m);
+    for k in 0..n {
+        let c_a = currents_a[k];
+        let c_b = match interp {
+            Interpolation::Hold => c_a,
+            Interpolation::Linear => currents_a[(k + 1).min(n - 1)],
+        };
+        for j in 0..s {
+            let fa = j as f64 / s as f64;
+            let fb = (j + 1) as f64 / s as f64;
+            let (u0, u1) = (c_a + (c_b - c_a) * fa, c_a + (c_b - c_a) * fb);
+            // Coil current: its mean and mean square over the substep.
+            let (i_mean, i2) = match &amp {
+                Some(a) => {
+                    let before = amp_state[0];
+                    amp_state = a.step(amp_state, u0, u1);
+                    let mean = 0.5 * (before + amp_state[0]);
+                    (
+                        mean,
+                        (before * before + before * amp_state[0] + amp_state[0] * amp_state[0])
+                            / 3.0,
+                    )
+                }
+                None => ((u0 + u1) * 0.5, (u0 * u0 + u0 * u1 + u1 * u1) / 3.0),
+            };
+            let (mrev, chi) = reversible(e.reversible, h);
+            // w_rev = (1 + χ) H + Γ(H) with the reversible part linearized at H.
+            let gamma = m - mrev;
+            let rhs = (1.0 + chi) * h + gamma + drive * (i_mean - q_keep * q);
+            let slope = (1.0 + chi + drive / c0) as f32;
+            let (h_new, g_new) = match measure.solve(&mut memory, slope, rhs as f32) {
+                Ok(sol) => (sol.h_a_per_m as f64, sol.m_a_per_m as f64),
+                Err(_) => (h, gamma),
+            };
+            let w_change =
+                (h_new - h) + (g_new - gamma) + (reversible(e.reversible, h_new).0 - mrev);
+            if let Some((tau, dz)) = path {
+                q = (tau * q + dz * w_change) / (tau + delta);
+            }
+            h = h_new;
+            m = g_new + reversible(e.reversible, h_new).0;
+            m_out.push(m);
+            i2_out.push(i2);
+        }
+    }
+    (m_out, i2_out, memory)
+}
 
-    // Mechanical derivatives for (y1, v1, y2, v2) at input u and squared frequency om2.
+/// The electromagnetic stage (module docs): Richardson combination of runs with `substeps` and
+/// `2 substeps` substeps per sample.
+#[allow(clippy::too_many_arguments)]
+pub fn run_electro(
+    nominal: &Nominal,
+    measure: &PreisachMeasure,
+    e: &Electro,
+    currents_a: &[f64],
+    step_s: f64,
+    interp: Interpolation,
+    start: &ModelStart,
+    previous: Option<&Memory>,
+    substeps: usize,
+) -> ElectroRun {
+    let s = substeps.max(1);
+    let (coarse, i2, _) = electro_once(
+        nominal, measure, e, currents_a, step_s, interp, start, previous, s,
+    );
+    let (fine, _, end) = electro_once(
+        nominal,
+        measure,
+        e,
+        currents_a,
+        step_s,
+        interp,
+        start,
+        previous,
+        2 * s,
+    );
+    let m = coarse
+        .iter()
+        .enumerate()
+        .map(|(j, c)| 2.0 * fine[2 * j] - c)
+        .collect();
+    ElectroRun {
+        substeps: s,
+        m_a_per_m: m,
+        current_sq_a2: i2,
+        end_memory: Box::new(end),
+    }
+}
+
+/// Exact discretization of `x'' = ω²(c − x) − 2ζω x'` over a step `δ` with `c` linear over it.
+#[derive(Debug, Clone, Copy)]
+struct SecondOrder {
+    phi: [[f64; 2]; 2],
+    g0: [f64; 2],
+    g1: [f64; 2],
+}
+
+impl SecondOrder {
+    fn new(omega: f64, zeta: f64, delta: f64) -> Self {
+        // Augmented 4×4 system [x, x', c, ċ]: c' = ċ, ċ' = 0 (a ramp), exponentiated.
+        let a = [
+            [0.0, 1.0, 0.0, 0.0],
+            [-omega * omega, -2.0 * zeta * omega, omega * omega, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [0.0, 0.0, 0.0, 0.0],
+        ];
+        let e = expm4(&scale4(&a, delta));
+        SecondOrder {
+            phi: [[e[0][0], e[0][1]], [e[1][0], e[1][1]]],
+            g0: [e[0][2], e[1][2]],
+            // Response to a ramp of slope ċ = (c1 − c0)/δ.
+            g1: [e[0][3] / delta, e[1][3] / delta],
+        }
+    }
+
+    fn step(&self, x: [f64; 2], c0: f64, c1: f64) -> [f64; 2] {
+        let d = c1 - c0;
+        [
+            self.phi[0][0] * x[0] + self.phi[0][1] * x[1] + self.g0[0] * c0 + self.g1[0] * d,
+            self.phi[1][0] * x[0] + self.phi[1][1] * x[1] + self.g0[1] * c0 + self.g1[1] * d,
+        ]
+    }
+}
+
+type Mat4 = [[f64; 4]; 4];
+
+fn scale4(a: &Mat4, s: f64) -> Mat4 {
+    let mut b = *a;
+    for row in b.iter_mut() {
+        for v in row.iter_mut() {
+            *v *= s;
+        }
+    }
+    b
+}
+
+fn mul4(a: &Mat4, b: &Mat4) -> Mat4 {
+    let mut c = [[0.0; 4]; 4];
+    for i in 0..4 {
+        for j in 0..4 {
+            c[i][j] = (0..4).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    c
+}
+
+/// `e^A` by scaling and squaring with a degree-18 Taylor series.
+fn expm4(a: &Mat4) -> Mat4 {
+    let norm = a
+        .iter()
+        .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max);
+    let squarings = if norm > 0.5 {
+        (norm / 0.5).log2().ceil() as u32
+    } else {
+        0
+    };
+    let a = scale4(a, 0.5f64.powi(squarings as i32));
+    let mut result = [[0.0; 4]; 4];
+    let mut term = [[0.0; 4]; 4];
+    for i in 0..4 {
+        result[i][i] = 1.0;
+        term[i][i] = 1.0;
+    }
+    for k in 1..=18 {
+        term = scale4(&mul4(&term, &a), 1.0 / k as f64);
+        for i in 0..4 {
+            for j in 0..4 {
+                result[i][j] += term[i][j];
+            }
+        }
+    }
+    for _ in 0..squarings {
+        result = mul4(&result, &result);
+    }
+    result
+}
+
+/// The mechanical stage (module docs): the displacement the sensor reads at every sample time
+/// (no offset), m.
+pub fn run_mech(
+    nominal: &Nominal,
+    mech: &Mech,
+    run: &ElectroRun,
+    n_samples: usize,
+    step_s: f64,
+    theta0: (f64, f64),
+) -> Vec<f64> {
+    let s = run.substeps;
+    let delta = step_s / s as f64;
+    let om0 = 2.0 * PI * mech.resonance_hz;
+    let damp = 2.0 * mech.damping_ratio * om0;
+    let ms2 = nominal.saturation_a_per_m * nominal.saturation_a_per_m;
+    let k_u = nominal.displacement_per_m2_m;
+    let load = mech.load.map(|(r, f, z)| {
+        let w = 2.0 * PI * f;
+        (r, w * w, 2.0 * z * w)
+    });
+    // Mechanical sub-substeps so that RK4 resolves the fastest mode, oscillatory or damped
+    // (rate · δ_m ≤ 0.5).
+    let mut rate_max =
+        om0 * (1.0 + mech.delta_e.map_or(0.0, |(a, b)| a.max(0.0) + b.max(0.0))).sqrt();
+    rate_max = rate_max.max(damp);
+    if let Some((r, w2, c2)) = load {
+        rate_max = rate_max.max((w2 * (1.0 + r)).sqrt()).max(c2 * (1.0 + r));
+    }
+    let sub = ((rate_max * delta / 0.5).ceil() as usize).clamp(1, 10_000);
+    let dm = delta / sub as f64;
+    let thermal = mech.thermal.map(|(tau, lag, g, e)| {
+        (
+            (-delta / tau).exp(),
+            (-delta / lag).exp(),
+            g,
+            e * nominal.stroke_m,
+        )
+    });
+    let u_of = |m: f64, phi: f64| match thermal {
+        Some((_, _, g, e)) => (1.0 - g * phi) * k_u * m * m + e * phi,
+        None => k_u * m * m,
+    };
+    let om2_of = |m: f64| match mech.delta_e {
+        Some((d1, d2)) => {
+            let r = m * m / ms2;
+            om0 * om0 * (1.0 + d1 * r + d2 * r * r).max(0.05)
+        }
+        None => om0 * om0,
+    };
     let accel = |y1: f64, v1: f64, y2: f64, v2: f64, u: f64, om2: f64| -> (f64, f64) {
-        let mut a1 = -damping * v1 - om2 * (y1 - u);
+        let mut a1 = -damp * v1 - om2 * (y1 - u);
         let mut a2 = 0.0;
-        if let Some((r, k2, c2)) = load {
-            let coupling = k2 * (y1 - y2) + c2 * (v1 - v2);
+        if let Some((r, w2, c2)) = load {
+            let coupling = w2 * (y1 - y2) + c2 * (v1 - v2);
             a1 -= r * coupling;
             a2 = coupling;
         }
         (a1, a2)
     };
-
-    for &cmd in currents_a {
-        out.push(if load.is_some() { y2 } else { y1 });
-        for _ in 0..s {
-            // Coil current and its average over the substep.
-            let i_avg = match amp_decay {
-                Some((e, avg)) => {
-                    let start = i_coil;
-                    i_coil = cmd + (start - cmd) * e;
-                    cmd + (start - cmd) * avg
-                }
-                None => {
-                    i_coil = cmd;
-                    cmd
-                }
-            };
-            // Eddy step (backward Euler, module docs).
-            let rhs = w + coef.drive * (i_avg - coef.j_keep * j);
-            let (h_new, g_new) = match measure.solve(&mut preisach, coef.slope, rhs as f32) {
-                Ok(sol) => (sol.h_a_per_m as f64, sol.m_a_per_m as f64),
-                Err(_) => (h, m - chi * h),
-            };
-            let w_new = (1.0 + chi) * h_new + g_new;
-            if let Some((c1b, tau)) = path {
-                j = (tau * j + (w_new - w) / c1b) / (tau + coef.step);
-            }
-            w = w_new;
-            h = h_new;
-            let m_old = m;
-            m = g_new + chi * h_new;
-            if let Some((e, _)) = thermal {
-                let i2 = i_avg * i_avg;
-                theta = i2 + (theta - i2) * e;
-            }
-            let u_old = u;
-            u = scale_of(theta) * nominal.displacement_per_m2_m * m * m;
-            // RK4 on the mechanics with u and M linear over the substep.
-            let om_a = omega2(m_old);
-            let om_b = omega2(m);
-            let om_m = omega2(0.5 * (m_old + m));
-            let u_m = 0.5 * (u_old + u);
-            let (a1, b1) = accel(y1, v1, y2, v2, u_old, om_a);
+    let (mut theta, mut phi) = if thermal.is_some() {
+        theta0
+    } else {
+        (0.0, 0.0)
+    };
+    let m0 = run.m_a_per_m[0];
+    // A run may be longer than the samples asked for (a chained experiment is simulated whole).
+    let total = run.m_a_per_m.len().min(1 + n_samples * s);
+    let u0 = u_of(m0, phi);
+    let (mut y1, mut v1, mut y2, mut v2) = (u0, 0.0f64, u0, 0.0f64);
+    // Observed position and rate at every substep point.
+    let mut pos = Vec::with_capacity(total);
+    let mut rate = Vec::with_capacity(total);
+    let observe =
+        |y1: f64, v1: f64, y2: f64, v2: f64| if load.is_some() { (y2, v2) } else { (y1, v1) };
+    let (p, r) = observe(y1, v1, y2, v2);
+    pos.push(p);
+    rate.push(r);
+    let mut u_prev = u0;
+    for j in 1..total {
+        let m_a = run.m_a_per_m[j - 1];
+        let m_b = run.m_a_per_m[j];
+        if let Some((decay, lag_decay, _, _)) = thermal {
+            let i2 = run.current_sq_a2[j - 1];
+            let before = theta;
+            theta = i2 + (theta - i2) * decay;
+            phi = 0.5 * (before + theta) + (phi - 0.5 * (before + theta)) * lag_decay;
+        }
+        let u_next = u_of(m_b, phi);
+        for q in 0..sub {
+            let fa = q as f64 / sub as f64;
+            let fh = (q as f64 + 0.5) / sub as f64;
+            let fb = (q as f64 + 1.0) / sub as f64;
+            let ua = u_prev + (u_next - u_prev) * fa;
+            let uh = u_prev + (u_next - u_prev) * fh;
+            let ub = u_prev + (u_next - u_prev) * fb;
+            let ma = m_a + (m_b - m_a) * fa;
+            let mh = m_a + (m_b - m_a) * fh;
+            let mb = m_a + (m_b - m_a) * fb;
+            let hd = 0.5 * dm;
+            let (a1, b1) = accel(y1, v1, y2, v2, ua, om2_of(ma));
             let (k1y1, k1v1, k1y2, k1v2) = (v1, a1, v2, b1);
-            let hd = 0.5 * delta;
             let (a2, b2) = accel(
                 y1 + hd * k1y1,
                 v1 + hd * k1v1,
                 y2 + hd * k1y2,
                 v2 + hd * k1v2,
-                u_m,
-                om_m,
+                uh,
+                om2_of(mh),
             );
             let (k2y1, k2v1, k2y2, k2v2) = (v1 + hd * k1v1, a2, v2 + hd * k1v2, b2);
             let (a3, b3) = accel(
@@ -291,20 +576,20 @@ pub fn simulate_plant(
                 v1 + hd * k2v1,
                 y2 + hd * k2y2,
                 v2 + hd * k2v2,
-                u_m,
-                om_m,
+                uh,
+                om2_of(mh),
             );
             let (k3y1, k3v1, k3y2, k3v2) = (v1 + hd * k2v1, a3, v2 + hd * k2v2, b3);
             let (a4, b4) = accel(
-                y1 + delta * k3y1,
-                v1 + delta * k3v1,
-                y2 + delta * k3y2,
-                v2 + delta * k3v2,
-                u,
-                om_b,
+                y1 + dm * k3y1,
+                v1 + dm * k3v1,
+                y2 + dm * k3y2,
+                v2 + dm * k3v2,
+                ub,
+                om2_of(mb),
             );
-            let (k4y1, k4v1, k4y2, k4v2) = (v1 + delta * k3v1, a4, v2 + delta * k3v2, b4);
-            let d6 = delta / 6.0;
+            let (k4y1, k4v1, k4y2, k4v2) = (v1 + dm * k3v1, a4, v2 + dm * k3v2, b4);
+            let d6 = dm / 6.0;
             y1 += d6 * (k1y1 + 2.0 * k2y1 + 2.0 * k3y1 + k4y1);
             v1 += d6 * (k1v1 + 2.0 * k2v1 + 2.0 * k3v1 + k4v1);
             if load.is_some() {
@@ -312,34 +597,131 @@ pub fn simulate_plant(
                 v2 += d6 * (k1v2 + 2.0 * k2v2 + 2.0 * k3v2 + k4v2);
             }
         }
+        u_prev = u_next;
+        let (p, r) = observe(y1, v1, y2, v2);
+        pos.push(p);
+        rate.push(r);
     }
-    out
-}
-
-/// Coefficients of one backward-Euler eddy step of length `step` (see the module docs):
-/// `slope · H⁺ + Γ(H⁺) = w_base + drive · (Ī - j_keep · J_base)`.
-struct EddyCoefficients {
-    step: f64,
-    slope: f32,
-    drive: f64,
-    j_keep: f64,
-}
-
-fn eddy_coefficients(
-    step: f64,
-    c1a: f64,
-    c0: f64,
-    chi: f64,
-    path: Option<(f64, f64)>,
-) -> EddyCoefficients {
-    let (kappa, j_keep) = match path {
-        Some((c1b, tau)) => (1.0 + step * c1a / (c1b * (tau + step)), tau / (tau + step)),
-        None => (1.0, 0.0),
+    // Sensor low-pass (exact for its input linear over a substep; the rate of the input is
+    // the observed rate).
+    let (out, out_rate) = match mech.sensor {
+        Some((f, zeta, _)) => {
+            let lp = SecondOrder::new(2.0 * PI * f, zeta, delta);
+            let mut x = [pos[0], 0.0];
+            let mut o = Vec::with_capacity(total);
+            let mut orate = Vec::with_capacity(total);
+            o.push(x[0]);
+            orate.push(x[1]);
+            for j in 1..total {
+                x = lp.step(x, pos[j - 1], pos[j]);
+                o.push(x[0]);
+                orate.push(x[1]);
+            }
+            (o, orate)
+        }
+        None => (pos, rate),
     };
-    EddyCoefficients {
-        step,
-        slope: (1.0 + chi + step * c1a / (kappa * c0)) as f32,
-        drive: step * c1a / kappa,
-        j_keep,
+    let delay_s = mech.sensor.map_or(0.0, |s| s.2);
+    (0..n_samples)
+        .map(|k| {
+            hermite(
+                &out,
+                &out_rate,
+                delta,
+                k as f64 * step_s + mech.skew_samples * step_s - delay_s,
+            )
+        })
+        .collect()
+}
+
+/// Cubic Hermite interpolation of `(value, rate)` samples spaced `delta`, at time `t` (clamped
+/// to the sampled span).
+fn hermite(value: &[f64], rate: &[f64], delta: f64, t: f64) -> f64 {
+    let last = value.len() - 1;
+    let pos = (t / delta).clamp(0.0, last as f64);
+    let i = (pos.floor() as usize).min(last.saturating_sub(1));
+    if last == 0 {
+        return value[0];
+    }
+    let u = pos - i as f64;
+    let (p0, p1) = (value[i], value[i + 1]);
+    let (m0, m1) = (rate[i] * delta, rate[i + 1] * delta);
+    let u2 = u * u;
+    let u3 = u2 * u;
+    (2.0 * u3 - 3.0 * u2 + 1.0) * p0
+        + (u3 - 2.0 * u2 + u) * m0
+        + (-2.0 * u3 + 3.0 * u2) * p1
+        + (u3 - u2) * m1
+}
+
+/// Convenience: the whole model on one current (no offset), m.
+#[allow(clippy::too_many_arguments)]
+pub fn simulate(
+    nominal: &Nominal,
+    measure: &PreisachMeasure,
+    electro: &Electro,
+    mech: &Mech,
+    currents_a: &[f64],
+    step_s: f64,
+    interp: Interpolation,
+    start: &ModelStart,
+    substeps: usize,
+) -> Vec<f64> {
+    let run = run_electro(
+        nominal, measure, electro, currents_a, step_s, interp, start, None, substeps,
+    );
+    run_mech(nominal, mech, &run, currents_a.len(), step_s, (0.0, 0.0))
+}
+
+/// The thermal state `(θ, φ)` (A²) at the start of an experiment whose predecessors `history`
+/// (oldest first) ran without a pause since a cold start: the coil and rod equations through
+/// their currents (a held command's square over each sample).
+pub fn chained_temperature(mech: &Mech, history: &[&[f64]], step_s: f64) -> (f64, f64) {
+    let Some((tau, lag, _, _)) = mech.thermal else {
+        return (0.0, 0.0);
+    };
+    let decay = (-step_s / tau).exp();
+    let lag_decay = (-step_s / lag).exp();
+    let (mut theta, mut phi) = (0.0, 0.0);
+    for currents in history {
+        for &i in currents.iter() {
+            let before = theta;
+            theta = i * i + (theta - i * i) * decay;
+            phi = 0.5 * (before + theta) + (phi - 0.5 * (before + theta)) * lag_decay;
+        }
+    }
+    (theta, phi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn second_order_step_tracks_a_ramp_and_settles() {
+        // A critically damped 2nd-order low-pass driven by a ramp lags it by 2ζ/ω in steady state.
+        let (omega, zeta, delta) = (2.0 * PI * 500.0, 1.0, 1e-5);
+        let lp = SecondOrder::new(omega, zeta, delta);
+        let mut x = [0.0, 0.0];
+        let mut c = 0.0;
+        for _ in 0..20_000 {
+            x = lp.step(x, c, c + delta);
+            c += delta;
+        }
+        assert!((c - x[0] - 2.0 * zeta / omega).abs() < 1e-9, "{}", c - x[0]);
+        // c accumulates 20 000 rounding errors, so the slope is only good to ~1e-9.
+        assert!((x[1] - 1.0).abs() < 1e-8, "{}", x[1]);
+    }
+
+    #[test]
+    fn hermite_is_exact_for_cubics() {
+        let f = |t: f64| 1.0 + 2.0 * t - 3.0 * t * t + 0.5 * t * t * t;
+        let df = |t: f64| 2.0 - 6.0 * t + 1.5 * t * t;
+        let d = 0.1;
+        let v: Vec<f64> = (0..10).map(|k| f(k as f64 * d)).collect();
+        let r: Vec<f64> = (0..10).map(|k| df(k as f64 * d)).collect();
+        for t in [0.03, 0.44, 0.77] {
+            assert!((hermite(&v, &r, d, t) - f(t)).abs() < 1e-12);
+        }
     }
 }

@@ -25,16 +25,22 @@ use actuator_params::{ActuatorParams, Provenance};
 use serde_json::{json, Map, Value};
 
 /// Options of `identify`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct IdentifyOptions {
-    /// Sign convention for M.
-    pub branch: Branch,
-    /// Initial memory of every file.
-    pub initial: InitialState,
+    /// Sign convention for M (`None`: per file, [`auto_branch`]).
+    pub branch: Option<Branch>,
+    /// Initial memory of every file (`None`: per file, as `dataset.json` documents it, else
+    /// [`auto_initial`]).
+    pub initial: Option<InitialState>,
+    /// The dataset's `dataset.json`, when it has one.
+    pub documented: Option<crate::dataset_info::DatasetInfo>,
     /// Zero band of the monotone sign rule, as a fraction of the full stroke `l_m λ_s`.
     pub zero_band_fraction: f64,
     /// The fit.
     pub fit: FitOptions,
+    /// `[R_eddy Ω, ξ, f0 Hz]` for the first-order lag corrections of a finite-rate record
+    /// ([`LagCorrection`]); `None`: no correction (the static model (6) as it stands).
+    pub lag_correction: Option<[f64; 3]>,
 }
 
 /// Per-file diagnostics.
@@ -73,6 +79,195 @@ pub struct Identification {
     pub files: Vec<FileReport>,
 }
 
+/// First-order lag corrections of a finite-rate quasi-static record (the static model (6)
+/// relates `H` and `u = l_m λ_s M²/M_s²`, not `c0 I` and `y`):
+///
+/// * mechanics, eq. (5): `u = y + (2ξ/ω0) y' + y''/ω0²` ([`LagCorrection::displacement`]; the rod
+///   lags `u` by `2ξ/ω0` ≈ 0.6 ms);
+/// * eddy currents, eq. (4): `H = c0 I − τ_e (H' + M')` with `τ_e = c0/c1`, to first order
+///   `H ≈ c0 I − τ_e (c0 I' + M')` ([`LagCorrection::field`]): on a steep branch `M' = χ H'` with
+///   χ in the hundreds, so even a 1 Hz sweep lags by ~0.1 cell there, a few % of `M_s` in `M`.
+///
+/// Derivatives are central differences across `±w` samples of a centred moving average over
+/// `2w + 1` samples, `w` ≈ 0.5 ms: the noise of `y''` falls as `w⁻²·⁵` while a sweep slower than
+/// ~10 Hz is not distorted.
+#[derive(Debug, Clone, Copy)]
+pub struct LagCorrection {
+    tau_e: f64,
+    damping_ratio: f64,
+    omega0: f64,
+    c0: f64,
+}
+
+impl LagCorrection {
+    /// For the constants of `base` with `[R_eddy Ω, ξ, f0 Hz]`.
+    pub fn new(base: &ActuatorParams, [r_eddy, xi, f0]: [f64; 3]) -> Self {
+        let a = &base.actuator;
+        let mu0 = 4e-7 * std::f64::consts::PI;
+        let c1 = r_eddy / (mu0 * a.coil_turns * a.rod_area_m2);
+        LagCorrection {
+            tau_e: a.coil_factor_per_m / c1,
+            damping_ratio: xi,
+            omega0: 2.0 * std::f64::consts::PI * f0,
+            c0: a.coil_factor_per_m,
+        }
+    }
+
+    fn half_width(step_s: f64) -> usize {
+        ((0.5e-3 / step_s).round() as usize).max(1)
+    }
+
+    fn smooth(x: &[f64], w: usize) -> Vec<f64> {
+        let n = x.len();
+        let mut prefix = vec![0.0; n + 1];
+        for k in 0..n {
+            prefix[k + 1] = prefix[k] + x[k];
+        }
+        (0..n)
+            .map(|k| {
+                let (lo, hi) = (k.saturating_sub(w), (k + w).min(n - 1));
+                (prefix[hi + 1] - prefix[lo]) / (hi - lo + 1) as f64
+            })
+            .collect()
+    }
+
+    fn d1(x: &[f64], k: usize, w: usize, step_s: f64) -> f64 {
+        let (lo, hi) = (k.saturating_sub(w), (k + w).min(x.len() - 1));
+        if hi == lo {
+            0.0
+        } else {
+            (x[hi] - x[lo]) / ((hi - lo) as f64 * step_s)
+        }
+    }
+
+    /// `u` from the displacement `y` (offset already removed).
+    pub fn displacement(&self, y: &[f64], step_s: f64) -> Vec<f64> {
+        let n = y.len();
+        let w = Self::half_width(step_s);
+        let ys = Self::smooth(y, w);
+        (0..n)
+            .map(|k| {
+                let d2 = if k < w || k + w >= n {
+                    0.0
+                } else {
+                    (ys[k + w] - 2.0 * ys[k] + ys[k - w]) / (w as f64 * step_s).powi(2)
+                };
+                y[k] + 2.0 * self.damping_ratio / self.omega0 * Self::d1(&ys, k, w, step_s)
+                    + d2 / (self.omega0 * self.omega0)
+            })
+            .collect()
+    }
+
+    /// `H` from the current and the (signed) magnetization.
+    pub fn field(&self, current_a: &[f64], m_a_per_m: &[f64], step_s: f64) -> Vec<f64> {
+        let w = Self::half_width(step_s);
+        let is = Self::smooth(current_a, w);
+        let ms = Self::smooth(m_a_per_m, w);
+        (0..current_a.len())
+            .map(|k| {
+                self.c0 * current_a[k]
+                    - self.tau_e
+                        * (self.c0 * Self::d1(&is, k, w, step_s) + Self::d1(&ms, k, w, step_s))
+            })
+            .collect()
+    }
+}
+
+/// The sensor offset, m: in a bipolar quasi-static record the magnetization crosses zero, where
+/// `y = l_m λ_s M²/M_s²` vanishes, so the floor of the measured displacement is the offset. The
+/// floor is the minimum of a moving average over `max(5, n/2000)` samples (the noise averaged
+/// down); the median over the bipolar records (`None` when there is none). Records whose field
+/// never leaves the grid's middle (|H| below a tenth of the range) are not bipolar enough.
+pub fn displacement_offset_m(dataset: &Dataset, c0: f64, grid: &Grid) -> Option<f64> {
+    let span = grid.h_max - grid.h_min;
+    let mut floors: Vec<f64> = dataset
+        .measurements
+        .iter()
+        .filter(|m| {
+            let (lo, hi) = m
+                .current_a
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &i| {
+                    (a.min(c0 * i), b.max(c0 * i))
+                });
+            lo < -0.1 * span && hi > 0.1 * span
+        })
+        .filter_map(|m| {
+            let y = &m.displacement_m;
+            let w = (y.len() / 2000).max(5);
+            if y.len() < w {
+                return None;
+            }
+            let mut sum: f64 = y[..w].iter().sum();
+            let mut floor = sum / w as f64;
+            for k in w..y.len() {
+                sum += y[k] - y[k - w];
+                floor = floor.min(sum / w as f64);
+            }
+            Some(floor)
+        })
+        .collect();
+    if floors.is_empty() {
+        return None;
+    }
+    floors.sort_by(f64::total_cmp);
+    Some(floors[floors.len() / 2])
+}
+
+/// The sign convention a file needs: `monotone` when its current changes sign (bipolar data:
+/// the magnetization changes sign too), else `positive` (DC-biased data from a state at zero).
+pub fn auto_branch(current_a: &[f64]) -> Branch {
+    let (lo, hi) = current_a
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if lo < 0.0 && hi > 0.0 {
+        Branch::Monotone
+    } else {
+        Branch::Positive
+    }
+}
+
+/// The initial memory of an undocumented file, from its field `h`: a record that starts beyond
+/// an end of the grid saturates the memory itself; a closed record (first and last samples
+/// within 2 % of the field range, at least one reversal) is a period of a periodic loop; any
+/// other starts from a demagnetization at zero current.
+pub fn auto_initial(h: &[f64], grid: &Grid) -> InitialState {
+    let (Some(&first), Some(&last)) = (h.first(), h.last()) else {
+        return InitialState::DemagnetizedAtZero;
+    };
+    if first <= grid.h_min {
+        return InitialState::NegativeSaturation;
+    }
+    if first >= grid.h_max {
+        return InitialState::PositiveSaturation;
+    }
+    let (lo, hi) = h
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let reversal = h.windows(3).any(|w| (w[1] - w[0]) * (w[2] - w[1]) < 0.0);
+    if reversal && (first - last).abs() <= 0.02 * (hi - lo) {
+        InitialState::Periodic
+    } else {
+        InitialState::DemagnetizedAtZero
+    }
+}
+
+/// The Preisach initial state a documented bench start means (`previous` has none of its own:
+/// `None`, the file's start is then estimated).
+pub fn documented_initial(start: crate::dataset_info::StartState) -> Option<InitialState> {
+    use crate::dataset_info::StartState as S;
+    match start {
+        S::SwitchOnDemagnetized | S::Demagnetized => Some(InitialState::DemagnetizedAtZero),
+        S::NegativeSaturation => Some(InitialState::NegativeSaturation),
+        S::PositiveSaturation => Some(InitialState::PositiveSaturation),
+        S::Previous => None,
+    }
+}
+
 /// Identifies the Preisach masses from `dataset` on the grid of `base` (see the module docs).
 pub fn identify(
     dataset: &Dataset,
@@ -90,29 +285,67 @@ pub fn identify(
         h_min: base.preisach.h_min_a_per_m,
         h_max: base.preisach.h_max_a_per_m,
     };
-    let initial_sign: i8 = match options.initial {
-        InitialState::NegativeSaturation => -1,
-        InitialState::PositiveSaturation => 1,
-        InitialState::Demagnetized | InitialState::Periodic => 0,
-    };
     let zero_band_m = options.zero_band_fraction * model.stroke_m();
+    let sensor_offset_m = displacement_offset_m(dataset, a.coil_factor_per_m, &grid);
     let mut fields = Vec::new();
     let mut conversions = Vec::new();
     let mut labels = Vec::new();
+    let mut initials = Vec::new();
+    let mut displacements: Vec<Vec<f64>> = Vec::new();
+    let mut choices = Vec::new();
     for m in &dataset.measurements {
-        let h: Vec<f64> = m
+        let correction = options.lag_correction.map(|c| LagCorrection::new(base, c));
+        let h_static: Vec<f64> = m
             .current_a
             .iter()
             .map(|i| a.coil_factor_per_m * i)
             .collect();
+        let y: Vec<f64> = m
+            .displacement_m
+            .iter()
+            .map(|y| y - sensor_offset_m.unwrap_or(0.0))
+            .collect();
+        let displacement = match &correction {
+            Some(c) => c.displacement(&y, m.step_s),
+            None => y,
+        };
+        let name = m.path.file_name().map_or_else(
+            || m.path.display().to_string(),
+            |n| n.to_string_lossy().into(),
+        );
+        let (initial, how) = match options.initial {
+            Some(i) => (i, "given"),
+            None => match options
+                .documented
+                .as_ref()
+                .and_then(|d| d.start_of(&name))
+                .and_then(documented_initial)
+            {
+                Some(i) => (i, "documented"),
+                None => (auto_initial(&h_static, &grid), "estimated"),
+            },
+        };
+        let branch = options.branch.unwrap_or_else(|| auto_branch(&m.current_a));
+        let initial_sign: i8 = match initial {
+            InitialState::NegativeSaturation => -1,
+            InitialState::PositiveSaturation => 1,
+            _ => 0,
+        };
         let conv = magnetization(
             &model,
-            &m.displacement_m,
-            &h,
-            options.branch,
+            &displacement,
+            &h_static,
+            branch,
             initial_sign,
             zero_band_m,
         );
+        let h = match &correction {
+            Some(c) => c.field(&m.current_a, &conv.m_a_per_m, m.step_s),
+            None => h_static,
+        };
+        initials.push(initial);
+        displacements.push(displacement.clone());
+        choices.push(json!({"file": name, "initial_state": initial.name(), "initial_state_from": how, "branch": branch.name()}));
         labels.push(m.path.file_name().map_or_else(
             || m.path.display().to_string(),
             |n| n.to_string_lossy().into(),
@@ -120,14 +353,22 @@ pub fn identify(
         fields.push(h);
         conversions.push(conv);
     }
-    let selected: Vec<Vec<bool>> = fields.iter().map(|h| vec![true; h.len()]).collect();
+    // Rows whose |M| lies inside the zero band are left out of the regression: there the sign of
+    // M is uncertain and M = M_s √(y/S) turns the sensor noise into tens of kA/m (dM/dy grows
+    // as 1/√y). The memory still sees them.
+    let m_band = model.saturation_magnetization_a_per_m * options.zero_band_fraction.sqrt();
+    let selected: Vec<Vec<bool>> = conversions
+        .iter()
+        .map(|c| c.m_a_per_m.iter().map(|m| m.abs() >= m_band).collect())
+        .collect();
     let experiments: Vec<Experiment<'_>> = (0..fields.len())
         .map(|k| Experiment {
             label: &labels[k],
             input: &fields[k],
             output: &conversions[k].m_a_per_m,
             selected: &selected[k],
-            initial: options.initial,
+            initial: initials[k],
+            weights: None,
         })
         .collect();
     let result = fit(
@@ -147,12 +388,15 @@ pub fn identify(
         weights: result.weights.clone(),
         offset: 0.0,
         slope: 0.0,
-        initial_state: options.initial,
+        initial_state: initials
+            .first()
+            .copied()
+            .unwrap_or(InitialState::NegativeSaturation),
         provenance: Value::Null,
     };
     let mut files = Vec::new();
     for k in 0..fields.len() {
-        let m_pred = generic.predict(&fields[k], options.initial);
+        let m_pred = generic.predict(&fields[k], initials[k]);
         let y_pred: Vec<f64> = m_pred.iter().map(|&m| model.displacement_m(m)).collect();
         let meas = &dataset.measurements[k];
         files.push(FileReport {
@@ -162,7 +406,7 @@ pub fn identify(
             above_stroke: conversions[k].above_stroke,
             sign_changes: conversions[k].sign_changes,
             nrmse_magnetization: nrmse(&m_pred, &conversions[k].m_a_per_m, None),
-            nrmse_displacement: nrmse(&y_pred, &meas.displacement_m, None),
+            nrmse_displacement: nrmse(&y_pred, &displacements[k], None),
             h_a_per_m: fields[k].clone(),
             m_measured_a_per_m: conversions[k].m_a_per_m.clone(),
             m_predicted_a_per_m: m_pred,
@@ -171,7 +415,20 @@ pub fn identify(
 
     let mut params = base.clone();
     params.preisach.weights_a_per_m = result.weights.clone();
-    params.provenance = provenance(dataset, base, base_name, options, &result, &files);
+    let mut prov = provenance(dataset, base, base_name, options, &result, &files, &choices);
+    prov.details.insert(
+        "sensor_offset_m".into(),
+        json!({
+            "value": sensor_offset_m.unwrap_or(0.0),
+            "how": if sensor_offset_m.is_some() {
+                "estimated: the floor of the displacement where M crosses zero in the bipolar \
+                 quasi-static records (median over them), subtracted before M = +/- M_s sqrt(y / (l_m lambda_s))"
+            } else {
+                "assumed 0: no bipolar quasi-static record (M never crosses zero) to estimate it from"
+            },
+        }),
+    );
+    params.provenance = prov;
     params
         .validate("identified parameters")
         .map_err(|e| FitError(format!("the identified parameters do not validate: {e}")))?;
@@ -189,6 +446,7 @@ fn provenance(
     options: &IdentifyOptions,
     result: &FitResult,
     files: &[FileReport],
+    choices: &[Value],
 ) -> Provenance {
     let mut d = Map::new();
     d.insert("dataset".into(), json!(dataset.dir.display().to_string()));
@@ -241,9 +499,8 @@ fn provenance(
         json!({
             "input": "H = c0 * current_a (static limit of (4))",
             "output": "M = +/- M_s sqrt(y / (l_m lambda_s)) (static model (6))",
-            "branch": options.branch.name(),
+            "branch_and_initial_state_per_file": choices,
             "zero_band_fraction_of_stroke": options.zero_band_fraction,
-            "initial_state": options.initial.name(),
             "regression": "M = sum_k w_k (2 f_k - 1), f_k = exact fraction of cell k in P+, \
                            w >= 0, clarabel QP",
             "smoothness": options.fit.smoothness,

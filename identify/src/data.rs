@@ -299,6 +299,11 @@ pub fn load_dataset(dir: &Path) -> Result<Dataset, DataError> {
         let path = entry.path();
         if path.is_file() && path.extension().is_some_and(|e| e == "csv") {
             files.push(path);
+        } else if path
+            .file_name()
+            .is_some_and(|n| n == crate::dataset_info::FILE_NAME)
+        {
+            // The dataset's documentation, read by `dataset_info`.
         } else {
             ignored.push(path);
         }

@@ -61,6 +61,9 @@ pub struct Experiment<'a> {
     pub selected: &'a [bool],
     /// Initial memory.
     pub initial: InitialState,
+    /// Weight of each row (inverse variance of the output, normalized by the caller), `None`:
+    /// all 1.
+    pub weights: Option<&'a [f64]>,
 }
 
 /// Runs the memory through an experiment and calls `row(t, x_normalized, fractions)` for every
@@ -82,6 +85,8 @@ pub fn run_experiment(
                 (a.min(u), b.max(u))
             });
         grid.normalize(0.5 * (lo + hi))
+    } else if initial == InitialState::DemagnetizedAtZero {
+        grid.normalize(0.0)
     } else {
         input.first().map_or(0.0, |&u| grid.normalize(u))
     };
@@ -187,7 +192,8 @@ impl Design {
                 design.output_range.0 = design.output_range.0.min(y);
                 design.output_range.1 = design.output_range.1.max(y);
                 let b = y / output_scale;
-                design.add_row(&a, b);
+                let w = e.weights.and_then(|w| w.get(t).copied()).unwrap_or(1.0);
+                design.add_row(&a, b, w);
             });
             design.outside.push((e.label.to_string(), outside));
         }
@@ -195,10 +201,10 @@ impl Design {
         design
     }
 
-    fn add_row(&mut self, a: &[f64], b: f64) {
+    fn add_row(&mut self, a: &[f64], b: f64, weight: f64) {
         let n = self.unknowns;
         for r in 0..n {
-            let ar = a[r];
+            let ar = a[r] * weight;
             if ar == 0.0 {
                 continue;
             }
@@ -208,7 +214,7 @@ impl Design {
             }
             self.atb[r] += ar * b;
         }
-        self.btb += b * b;
+        self.btb += weight * b * b;
         self.rows += 1;
     }
 

@@ -128,6 +128,11 @@ fn list(dir: &Path) -> Result<Listing, DataError> {
         let path = entry.path();
         if path.is_file() && path.extension().is_some_and(|e| e == "csv") {
             files.push(path);
+        } else if path
+            .file_name()
+            .is_some_and(|n| n == crate::dataset_info::FILE_NAME)
+        {
+            // The dataset's documentation, read by `dataset_info`.
         } else if path.is_dir() {
             dirs.push(path);
         } else {

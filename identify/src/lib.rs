@@ -34,6 +34,7 @@ pub mod actuator;
 pub mod cells;
 pub mod columns;
 pub mod data;
+pub mod dataset_info;
 pub mod design;
 pub mod dynamics;
 pub mod excite;

@@ -27,6 +27,9 @@ pub enum InitialState {
     /// AC-demagnetized around the experiment's first input value: `P₊ = {α + β < 2 u₀}`
     /// (approximated by a fine staircase, see [`Memory::demagnetized`]).
     Demagnetized,
+    /// AC-demagnetized around the zero input (no current), then the input moves to the
+    /// experiment's first value: what a bench's demagnetization before an experiment leaves.
+    DemagnetizedAtZero,
     /// The experiment is one period of a periodic steady state: start demagnetized around the
     /// middle of the experiment's input excursion, run the whole input sequence once, then
     /// record.
@@ -35,10 +38,11 @@ pub enum InitialState {
 
 impl InitialState {
     /// All variants with their CLI names.
-    pub const NAMES: [(&'static str, InitialState); 4] = [
+    pub const NAMES: [(&'static str, InitialState); 5] = [
         ("negative-saturation", InitialState::NegativeSaturation),
         ("positive-saturation", InitialState::PositiveSaturation),
         ("demagnetized", InitialState::Demagnetized),
+        ("demagnetized-at-zero", InitialState::DemagnetizedAtZero),
         ("periodic", InitialState::Periodic),
     ];
 
@@ -135,15 +139,16 @@ impl Memory {
     }
 
     /// The memory an [`InitialState`] starts from; `centre_x` (normalized) is the demagnetization
-    /// centre (the first input for `Demagnetized`, the middle of the excursion for `Periodic`,
-    /// which then also needs the caller to run the preconditioning period).
+    /// centre (the first input for `Demagnetized`, the zero input for `DemagnetizedAtZero`, the
+    /// middle of the excursion for `Periodic`, which then also needs the caller to run the
+    /// preconditioning period).
     pub fn initial(levels: usize, state: InitialState, centre_x: f64) -> Self {
         match state {
             InitialState::NegativeSaturation => Self::negative_saturation(levels),
             InitialState::PositiveSaturation => Self::positive_saturation(levels),
-            InitialState::Demagnetized | InitialState::Periodic => {
-                Self::demagnetized(levels, centre_x)
-            }
+            InitialState::Demagnetized
+            | InitialState::DemagnetizedAtZero
+            | InitialState::Periodic => Self::demagnetized(levels, centre_x),
         }
     }
 

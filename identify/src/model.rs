@@ -207,6 +207,7 @@ pub fn fit_table(
             output: &s.output,
             selected: &s.selected,
             initial,
+            weights: None,
         })
         .collect();
     let result = crate::fit::fit(&grid, &experiments, None, options)?;

@@ -59,8 +59,10 @@ fn forc_dataset_identifies_to_a_valid_parameter_file() {
     let dir = dataset("forc", &e.current_a, &y);
     let ds = load_dataset(&dir).unwrap();
     let options = IdentifyOptions {
-        branch: Branch::Monotone,
-        initial: InitialState::NegativeSaturation,
+        branch: Some(Branch::Monotone),
+        initial: Some(InitialState::NegativeSaturation),
+        documented: None,
+        lag_correction: None,
         zero_band_fraction: 0.01,
         fit: FitOptions {
             unexcited: Unexcited::KeepPrior,
@@ -126,8 +128,10 @@ fn biased_data_reports_the_cells_it_cannot_reach() {
         &p,
         "paper defaults",
         &IdentifyOptions {
-            branch: Branch::Positive,
-            initial: InitialState::Demagnetized,
+            branch: Some(Branch::Positive),
+            initial: Some(InitialState::Demagnetized),
+            documented: None,
+            lag_correction: None,
             zero_band_fraction: 0.01,
             fit: FitOptions {
                 unexcited: Unexcited::KeepPrior,

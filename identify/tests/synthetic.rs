@@ -84,6 +84,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
             output: &m,
             selected: &selected,
             initial: InitialState::NegativeSaturation,
+            weights: None,
         }],
         None,
         &FitOptions {

@@ -24,15 +24,8 @@ pub struct Args {
     #[arg(short = 'o', long)]
     pub out: PathBuf,
     /// Model substeps per sample (Richardson-extrapolated with twice as many).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 1)]
     pub substeps: usize,
-    /// Nelder-Mead iterations per parameter and refined start.
-    #[arg(long, default_value_t = 30)]
-    pub iterations: u64,
-    /// Highest excitation frequency the parameter file was identified on, Hz (optional): the
-    /// reported gap onset is then where the error exceeds twice the agreement reached there.
-    #[arg(long, value_name = "HZ")]
-    pub identified_up_to_hz: Option<f64>,
 }
 
 /// Runs `maglab diagnose`.
@@ -43,22 +36,33 @@ pub fn run(args: &Args) -> Result<()> {
     for p in &dataset.ignored {
         println!("note: not a measurement file, not read: {}", p.display());
     }
+    if args.substeps == 0 {
+        return Err(anyhow!("--substeps must be at least 1"));
+    }
+    let documented = maglab_identify::dataset_info::DatasetInfo::load(&args.dataset)
+        .map_err(|e| anyhow!("{e}"))?;
     let options = DiagnoseOptions {
         substeps: args.substeps,
-        max_iterations: args.iterations,
-        identified_up_to_hz: args.identified_up_to_hz,
+        ..DiagnoseOptions::default()
     };
+    let started = std::time::Instant::now();
     // Work units: one per model evaluation (about 7 candidates × 150).
     let bar = ProgressBar::new(1000).with_style(
         ProgressStyle::with_template("diagnose {bar:40} {pos} model runs ({elapsed})")
             .map_err(|e| anyhow!("{e}"))?,
     );
-    let run = diagnose(&params, &dataset.measurements, &options, &|n| {
-        if bar.position() + n >= bar.length().unwrap_or(0) {
-            bar.inc_length(200);
-        }
-        bar.inc(n)
-    })
+    let run = diagnose(
+        &params,
+        &dataset.measurements,
+        documented.as_ref(),
+        &options,
+        &|n| {
+            if bar.position() + n >= bar.length().unwrap_or(0) {
+                bar.inc_length(200);
+            }
+            bar.inc(n)
+        },
+    )
     .map_err(|e| anyhow!(e))?;
     bar.finish_and_clear();
     std::fs::create_dir_all(&args.out)
@@ -72,11 +76,23 @@ pub fn run(args: &Args) -> Result<()> {
     let md_path = args.out.join("report.md");
     std::fs::write(&md_path, md).with_context(|| format!("cannot write {}", md_path.display()))?;
     let d = &run.diagnosis;
-    println!("verdict: {} — {}", d.verdict, d.verdict_reason);
+    let named: Vec<&str> = std::iter::once(d.verdict.as_str())
+        .chain(d.additional_effects.iter().map(|s| s.as_str()))
+        .collect();
+    println!("verdict: {} — {}", named.join(" + "), d.verdict_reason);
+    println!("estimated (nuisances, not effects):");
+    for e in &d.nuisance.estimated {
+        println!("  {e}");
+    }
     for s in &d.where_.summary {
         println!("  {s}");
     }
-    println!("wrote {} and {}", json_path.display(), md_path.display());
+    println!(
+        "wrote {} and {} ({:.1} s)",
+        json_path.display(),
+        md_path.display(),
+        started.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
@@ -95,7 +111,30 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
         d.experiments.len(),
         args.params.display()
     );
-    let _ = writeln!(s, "## Verdict: `{}`\n\n{}.\n", d.verdict, d.verdict_reason);
+    let named: Vec<&str> = std::iter::once(d.verdict.as_str())
+        .chain(d.additional_effects.iter().map(|s| s.as_str()))
+        .collect();
+    let _ = writeln!(
+        s,
+        "## Verdict: `{}`\n\n{}.\n",
+        named.join(" + "),
+        d.verdict_reason
+    );
+    let _ = writeln!(s, "## Estimated, not effects\n");
+    for e in &d.nuisance.estimated {
+        let _ = writeln!(s, "- {e}");
+    }
+    let r = &d.refitted_nominal;
+    let _ = writeln!(
+        s,
+        "- the nominal constants refitted on the training experiments: {} (held-out RMS {} µm)\n",
+        r.parameters
+            .iter()
+            .map(|(k, v)| format!("{k} = {v:.4}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        um(r.held_out_rms_after_m)
+    );
     if !d.ambiguous_with.is_empty() {
         let _ = writeln!(
             s,
@@ -148,7 +187,7 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
     let _ = writeln!(s, "## Candidates (held-out experiments)\n");
     let _ = writeln!(
         s,
-        "| rank | effect | held-out RMS before (µm) | after (µm) | reduction | improved | significant | fitted parameters |\n|---|---|---|---|---|---|---|---|"
+        "| rank | effect | held-out RMS, refitted nominal (µm) | with the effect (µm) | effect switched off (µm) | reduction | worse | pinned | significant | fitted parameters |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     for (k, c) in d.ranking.iter().enumerate() {
         let params: Vec<String> = c
@@ -158,17 +197,35 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.2}x | {}/{} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {:.2}x | {}/{} | {} | {} | {} |",
             k + 1,
             c.effect,
             um(c.held_out_rms_before_m),
             um(c.held_out_rms_after_m),
+            um(c.knocked_out_rms_m),
             c.held_out_reduction,
-            c.improved_experiments,
+            c.worse_experiments,
             c.held_out_experiments,
+            c.pinned.join(", "),
             if c.significant { "yes" } else { "no" },
             params.join(", ")
         );
+    }
+    if !d.second_stage.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nPairs (second stage), against the best single candidate:\n"
+        );
+        for c in &d.second_stage {
+            let _ = writeln!(
+                s,
+                "- {}: held-out RMS {} µm (systematic {} µm), pinned [{}]",
+                c.effect,
+                um(c.held_out_rms_after_m),
+                um(c.systematic_after_m),
+                c.pinned.join(", ")
+            );
+        }
     }
     let held: Vec<&str> = d
         .experiments
@@ -203,7 +260,7 @@ fn plots(run: &DiagnosisRun, out: &Path) -> Result<Vec<&'static str>> {
             "RMS residual (µm)",
         );
         panel.series.push(Series {
-            label: Some("nominal".into()),
+            label: Some("nominal, refitted".into()),
             points: best
                 .per_band
                 .iter()

@@ -76,6 +76,7 @@ pub fn run(args: &Args) -> Result<()> {
             output: &zeros,
             selected: &all,
             initial: InitialState::NegativeSaturation,
+            weights: None,
         }],
         false,
         1.0,

@@ -1,10 +1,16 @@
 //! `maglab identify`: a dataset folder → the full parameter JSON.
 //!
 //! The files are split by the dataset convention (`maglab_identify::experiments`: sub-folders
-//! `quasi-static/` and `dynamic/`, or the spectrum of each file's current). The quasi-static files
-//! give the Preisach masses (`maglab_identify::actuator`); the dynamic files (sinusoidal currents
-//! with DC bias at several frequencies) give R_eddy and ξ by the paper's phase-lag scheme and
-//! R_eddy, ξ, f0 by the direct waveform fit (`maglab_identify::dynamics`), reported side by side.
+//! `quasi-static/` and `dynamic/`, or the spectrum of each file's current): a folder as recorded,
+//! reversal runs and sines together. Each file starts as `dataset.json` documents it
+//! (`maglab_identify::dataset_info`), else as estimated. The quasi-static files give the Preisach
+//! masses (`maglab_identify::actuator`); the dynamic files (sinusoidal currents with DC bias at
+//! several frequencies) give R_eddy and ξ by the paper's phase-lag scheme
+//! (`maglab_identify::dynamics`), then R_eddy, ξ, f0 by a waveform fit with the recording's
+//! nuisances estimated (the current held or linear between samples, the channel skew, the
+//! sensor offset, undocumented start states) — the model and fit of the diagnosis
+//! (`maglab_diagnose::identification`), so an identified file is what `maglab diagnose`'s refit
+//! gives on the same data. Both are reported side by side.
 //! Without dynamic files R_eddy, ξ, f0 are copied from the base file and the provenance says so.
 //! Plots: the identified masses on the Preisach plane, measured vs predicted M-H loops, the
 //! Figure 5 chart (ξ against frequency per candidate R_eddy) and measured vs predicted
@@ -41,20 +47,24 @@ pub struct Args {
     /// the prior masses. Default: the built-in paper defaults.
     #[arg(long)]
     params: Option<PathBuf>,
-    /// Sign of M: `positive` (DC-biased data, M >= 0) or `monotone` (bipolar data such as
-    /// `maglab excite`; sign from input monotonicity). No default: the choice depends on how
-    /// the data were taken.
+    /// Sign of M for every file: `positive` (DC-biased data, M >= 0) or `monotone` (bipolar
+    /// data such as `maglab excite`; sign from input monotonicity). Default: per file, monotone
+    /// when its current changes sign, else positive.
     #[arg(long)]
-    branch: String,
-    /// Initial memory of every file: negative-saturation (data from `maglab excite`),
-    /// positive-saturation, demagnetized (around the first current), periodic.
+    branch: Option<String>,
+    /// Initial memory of every quasi-static file: negative-saturation, positive-saturation,
+    /// demagnetized (around the first current), demagnetized-at-zero, periodic. Default: per
+    /// file, as dataset.json documents it, else estimated (a record starting beyond the grid
+    /// saturates itself; a closed record is periodic; else demagnetized at zero current).
     #[arg(long)]
-    initial: String,
+    initial: Option<String>,
     /// Zero band of the monotone sign rule, fraction of the full stroke l_m λ_s.
     #[arg(long, default_value_t = 0.01)]
     zero_band: f64,
-    /// Smoothness weight λ_s.
-    #[arg(long, default_value_t = 1e-6)]
+    /// Smoothness weight λ_s. Small by default: a Terfenol-like density is sharply peaked near
+    /// the coercive field, and a stronger prior of smooth densities biases the central masses
+    /// (measured on the bench plant: λ_s = 1e-6 put R_eddy 9 % off through them, 1e-8 under 1 %).
+    #[arg(long, default_value_t = 1e-8)]
     smoothness: f64,
     /// Ridge weight λ_r toward the base masses.
     #[arg(long, default_value_t = 0.0)]
@@ -71,12 +81,13 @@ pub struct Args {
     /// Lowest excitation frequency of a dynamic file (spectrum rule), Hz.
     #[arg(long, default_value_t = 10.0)]
     dynamic_min_hz: f64,
-    /// Initial memory of every dynamic experiment (at rest under its first current):
-    /// demagnetized, negative-saturation, positive-saturation.
+    /// Initial memory of every dynamic experiment for the phase-lag scheme (at rest under its
+    /// first current): demagnetized, negative-saturation, positive-saturation. The final fit
+    /// uses dataset.json's start states and estimates the others.
     #[arg(long, default_value = "demagnetized")]
     dynamic_start: String,
-    /// The recorded current between samples: `linear` (samples of a continuous current) or
-    /// `hold` (a command held over each sample, e.g. `maglab rig`).
+    /// The recorded current between samples for the phase-lag scheme: `linear` or `hold`. The
+    /// final fit estimates it.
     #[arg(long, default_value = "linear")]
     current_between_samples: String,
     /// Longest model step of the dynamic simulations, s.
@@ -88,7 +99,7 @@ pub struct Args {
     /// Resistivity of the rod for the upper bound R̄ of R_eddy, Ω·m.
     #[arg(long, default_value_t = TERFENOL_RESISTIVITY_OHM_M)]
     resistivity_ohm_m: f64,
-    /// Skip the waveform fit (write the phase-lag scheme's R_eddy, ξ and the base f0).
+    /// Skip the final fit (write the phase-lag scheme's R_eddy, ξ and the base f0).
     #[arg(long)]
     no_waveform_fit: bool,
 }
@@ -105,9 +116,29 @@ pub fn run(args: &Args) -> Result<()> {
             "built-in paper defaults (params/actuator.json content)".to_string(),
         ),
     };
+    let documented = maglab_identify::dataset_info::DatasetInfo::load(&args.dataset)?;
+    if documented.is_some() {
+        println!(
+            "{}: start states as documented there",
+            args.dataset
+                .join(maglab_identify::dataset_info::FILE_NAME)
+                .display()
+        );
+    }
     let options = IdentifyOptions {
-        branch: Branch::parse(&args.branch).map_err(|e| anyhow!(e))?,
-        initial: InitialState::parse(&args.initial).map_err(|e| anyhow!(e))?,
+        branch: args
+            .branch
+            .as_deref()
+            .map(Branch::parse)
+            .transpose()
+            .map_err(|e| anyhow!(e))?,
+        initial: args
+            .initial
+            .as_deref()
+            .map(InitialState::parse)
+            .transpose()
+            .map_err(|e| anyhow!(e))?,
+        documented: documented.clone(),
         zero_band_fraction: args.zero_band,
         fit: FitOptions {
             smoothness: args.smoothness,
@@ -116,6 +147,11 @@ pub fn run(args: &Args) -> Result<()> {
             unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
             row_stride: args.row_stride,
         },
+        lag_correction: Some([
+            base.actuator.eddy_resistance_ohm,
+            base.actuator.damping_ratio,
+            base.actuator.resonance_hz,
+        ]),
     };
     let split = load_split_dataset(
         &args.dataset,
@@ -144,6 +180,27 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let dataset = split.quasi_static_dataset();
     let mut id = identify(&dataset, &base, &base_name, &options)?;
+    // The lag corrections of the quasi-static records need R_eddy, ξ, f0: with dynamic records,
+    // identify them, then the masses again with them, then the dynamics on those masses.
+    let mut first_pass: Option<DynamicFit> = None;
+    if !split.dynamic.is_empty() && !args.no_waveform_fit {
+        let fit = identify_dynamics(args, &split, &id.params, documented.as_ref())?;
+        let best = fit.best();
+        println!(
+            "second pass: the masses with the lags of R_eddy = {:.2} Ω, ξ = {:.4}, f0 = {:.1} Hz",
+            best.eddy_resistance_ohm, best.damping_ratio, best.resonance_hz
+        );
+        let again = IdentifyOptions {
+            lag_correction: Some([
+                best.eddy_resistance_ohm,
+                best.damping_ratio,
+                best.resonance_hz,
+            ]),
+            ..options.clone()
+        };
+        id = identify(&dataset, &base, &base_name, &again)?;
+        first_pass = Some(fit);
+    }
     for f in &id.files {
         println!(
             "{}: {} samples, negative displacement clipped {}, above stroke {}, sign changes {}, \
@@ -188,7 +245,15 @@ pub fn run(args: &Args) -> Result<()> {
         );
         None
     } else {
-        let fit = identify_dynamics(args, &split, &id.params)?;
+        let fit = identify_dynamics(args, &split, &id.params, documented.as_ref())?;
+        if let Some(first) = &first_pass {
+            let (a, b) = (first.best(), fit.best());
+            println!(
+                "R_eddy, ξ, f0 after the second pass: {:.2} Ω, {:.4}, {:.1} Hz (first pass {:.2} Ω, {:.4}, {:.1} Hz)",
+                b.eddy_resistance_ohm, b.damping_ratio, b.resonance_hz,
+                a.eddy_resistance_ohm, a.damping_ratio, a.resonance_hz
+            );
+        }
         record::record(&mut id.params, &fit, &split);
         id.params
             .validate("identified parameters")
@@ -268,6 +333,7 @@ fn identify_dynamics(
     args: &Args,
     split: &SplitDataset,
     params: &actuator_params::ActuatorParams,
+    documented: Option<&maglab_identify::dataset_info::DatasetInfo>,
 ) -> Result<DynamicFit> {
     let options = DynamicOptions {
         simulation: SimulationOptions {
@@ -278,7 +344,6 @@ fn identify_dynamics(
         },
         resistivity_ohm_m: args.resistivity_ohm_m,
         phase_lag_resonance_hz: args.resonance_hz,
-        waveform_fit: !args.no_waveform_fit,
         ..DynamicOptions::default()
     };
     if !(options.simulation.max_substep_s > 0.0 && options.resistivity_ohm_m > 0.0) {
@@ -304,8 +369,11 @@ fn identify_dynamics(
             bar.set_position(done as u64);
         }
     };
-    let fit = fit_eddy_and_damping(&split.dynamic, params, &options, &progress)?;
+    let mut fit = fit_eddy_and_damping(&split.dynamic, params, &options, &progress)?;
     bar.finish_and_clear();
+    if !args.no_waveform_fit {
+        refine(&mut fit, split, params, documented)?;
+    }
     let pl = &fit.phase_lag;
     println!(
         "R̄ = 8πρN²/l_m = {:.1} Ω (ρ = {:e} Ω·m); grid: {} geometric points from {:.3} Ω, then {} \
@@ -320,7 +388,7 @@ fn identify_dynamics(
     );
     println!(
         "{:>10} {:>10} {:>12} {:>12} {:>14}",
-        "f (Hz)", "lag (°)", "ξ_k (PL)", "NRMSE PL", "NRMSE WF"
+        "f (Hz)", "lag (°)", "ξ_k (PL)", "NRMSE PL", "NRMSE final"
     );
     for (k, e) in fit.experiments.iter().enumerate() {
         println!(
@@ -329,7 +397,7 @@ fn identify_dynamics(
             e.measured_lag_deg,
             pl.chosen.damping_ratios[k],
             100.0 * e.nrmse_phase_lag,
-            e.nrmse_waveform
+            e.nrmse_refined
                 .map_or("—".into(), |v| format!("{:.3} %", 100.0 * v))
         );
     }
@@ -349,17 +417,18 @@ fn identify_dynamics(
         fit.phase_lag_params.resonance_hz,
         100.0 * rms(&mut fit.experiments.iter().map(|e| e.nrmse_phase_lag))
     );
-    if let Some(w) = &fit.waveform {
+    if let Some(w) = &fit.refined {
         println!(
-            "{:<34} {:>12.2} {:>10.4} {:>10.1} {:>10.3} %   ({} model runs, {})",
-            "waveform fit (Levenberg-Marquardt)",
+            "{:<34} {:>12.2} {:>10.4} {:>10.1} {:>10.3} %",
+            "waveform fit with nuisances (LM)",
             w.params.eddy_resistance_ohm,
             w.params.damping_ratio,
             w.params.resonance_hz,
             100.0 * w.rms_nrmse,
-            w.evaluations,
-            w.termination
         );
+        if let Some(e) = w.details.get("estimated") {
+            println!("estimated with it: {e}");
+        }
     }
     println!(
         "(paper's literal criterion, least variance of ξ_k: R_eddy = {:.2} Ω; least std/mean: {:.2} Ω; \
@@ -369,6 +438,75 @@ fn identify_dynamics(
         pl.chosen.phase_misfit_rad.to_degrees()
     );
     Ok(fit)
+}
+
+/// The final fit: `R_eddy`, `ξ`, `f0` with the recording's nuisances estimated, started from the
+/// phase-lag result (`maglab_diagnose::identification`).
+fn refine(
+    fit: &mut DynamicFit,
+    split: &SplitDataset,
+    params: &actuator_params::ActuatorParams,
+    documented: Option<&maglab_identify::dataset_info::DatasetInfo>,
+) -> Result<()> {
+    use maglab_diagnose::identification::{identify_dynamics, IdentificationOptions};
+    let measurements: Vec<_> = split
+        .dynamic
+        .iter()
+        .map(|d| d.measurement.clone())
+        .collect();
+    let pl = fit.phase_lag_params;
+    let id = identify_dynamics(
+        params,
+        &measurements,
+        documented,
+        [pl.eddy_resistance_ohm, pl.damping_ratio, pl.resonance_hz],
+        &IdentificationOptions::default(),
+    )
+    .map_err(|e| anyhow!("final fit of R_eddy, xi, f0: {e}"))?;
+    let predictions: Vec<(String, Vec<f64>)> = id
+        .predictions
+        .iter()
+        .map(|(file, y)| {
+            let path = measurements
+                .iter()
+                .find(|m| {
+                    m.path
+                        .file_name()
+                        .is_some_and(|n| n.to_string_lossy() == file.as_str())
+                })
+                .map_or_else(|| file.clone(), |m| m.path.display().to_string());
+            (path, y.clone())
+        })
+        .collect();
+    let details = serde_json::json!({
+        "method": "Levenberg-Marquardt on the displacement of every dynamic experiment with the \
+                   model of maglab diagnose (core Preisach operator, backward-Euler eddy step with \
+                   Richardson extrapolation, f64 mechanics), started from the phase-lag result",
+        "estimated": {
+            "current_between_samples": id.current_between_samples,
+            "channel_skew_samples": id.channel_skew_samples,
+            "sensor_offset_m": id.sensor_offset_m,
+            "start_state_of_undocumented_experiments": id.start_state,
+            "documented_start_states": id.documented_starts,
+        },
+        "rms_residual_m": id.rms_m,
+        "noise_m": id.noise_m,
+        "systematic_residual_m": id.systematic_m,
+        "model_evaluations": id.evaluations,
+    });
+    fit.attach_refined(
+        maglab_identify::dynamics::RefinedFit {
+            params: maglab_identify::dynamics::simulate::DynamicParams {
+                eddy_resistance_ohm: id.eddy_resistance_ohm,
+                damping_ratio: id.damping_ratio,
+                resonance_hz: id.resonance_hz,
+            },
+            rms_nrmse: 0.0,
+            details,
+        },
+        &predictions,
+    );
+    Ok(())
 }
 
 /// The Figure 5 chart: `ξ_k` against frequency for candidates around the chosen `R_eddy`.
@@ -466,9 +604,9 @@ fn dynamic_loops(fit: &DynamicFit, split: &SplitDataset) -> Figure {
             color: PALETTE[2],
             width: 2,
         });
-        if let (Some(y), Some(n)) = (&e.predicted_waveform_m, e.nrmse_waveform) {
+        if let (Some(y), Some(n)) = (&e.predicted_refined_m, e.nrmse_refined) {
             panel.series.push(Series {
-                label: Some(format!("waveform fit ({:.2} %)", 100.0 * n)),
+                label: Some(format!("final fit ({:.2} %)", 100.0 * n)),
                 points: pts(y),
                 color: PALETTE[1],
                 width: 2,

@@ -70,6 +70,7 @@ fn check(path: &Path) -> Result<()> {
         params: core,
         origin: path.display().to_string(),
         provenance: file.provenance.source.clone(),
+        file: file.clone(),
     }
     .measure();
     let a = &file.actuator;

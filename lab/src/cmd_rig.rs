@@ -1,15 +1,16 @@
-//! `maglab rig`: the virtual test rig. Generates a dataset (one `t_s,current_a,displacement_m` CSV
-//! per experiment) from the f64 reference plant with unmodelled effects switched on
-//! (`--effect name:key=value,...`, repeatable; see `maglab-diagnose::effects` for the names and
-//! parameters), plus sensor noise and quantization: sine sweeps with DC bias and Van der Pol
-//! tracking runs. The effects are printed and optionally written to `--manifest FILE`, never into
-//! the dataset folder, so a diagnosis of the folder cannot see them.
+//! `maglab rig`: the virtual test bench. Records a dataset (one `t_s,current_a,displacement_m`
+//! CSV per experiment and the `dataset.json` a bench documents) from the bench plant
+//! (`maglab-plant`: its own Preisach operator and integrator, the effects in physical forms, the
+//! recording's nuisances): sine sweeps with DC bias, a quasi-static reversal (FORC) sweep for the
+//! Preisach masses, and Van der Pol tracking runs. The effects and nuisances are printed and
+//! optionally written to `--manifest FILE`, never into the dataset folder, so a diagnosis of the
+//! folder cannot see them.
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args as ClapArgs;
-use indicatif::{ProgressBar, ProgressStyle};
-use maglab_diagnose::effects::{EffectName, RigEffect};
-use maglab_diagnose::rig::{self, Excitation, RigOptions};
+use maglab_identify::dataset_info::StartState;
+use maglab_plant::bench::{self, BenchSettings, Experiment};
+use maglab_plant::{CurrentBetweenSamples, Effect, EFFECTS};
 use std::path::PathBuf;
 
 /// Arguments of `maglab rig`.
@@ -21,35 +22,54 @@ pub struct Args {
     /// Nominal parameter file of the plant (default: `params/actuator.json` values).
     #[arg(long, value_name = "FILE")]
     pub params: Option<PathBuf>,
-    /// An effect, `name` or `name:key=value,...` (repeatable). Names: eddy_frequency_dependence,
-    /// amplifier_bandwidth, sensor_dynamics, reversible_magnetization, thermal_drift,
-    /// delta_e_effect, mechanical_load, backlash. `--list-effects` shows parameters and defaults.
+    /// An effect, `name` or `name:key=value,...` (repeatable). `--list-effects` shows the names,
+    /// parameters, ranges and defaults.
     #[arg(long = "effect")]
     pub effects: Vec<String>,
-    /// Print every effect's parameters with defaults and exit.
+    /// Print every effect's parameters with defaults and ranges and exit.
     #[arg(long)]
     pub list_effects: bool,
     /// Sine frequencies, Hz.
     #[arg(long, value_delimiter = ',', default_value = "20,50,100,200,300,400")]
     pub freq: Vec<f64>,
     /// Sine amplitudes, A (every frequency at every amplitude).
-    #[arg(long, value_delimiter = ',', default_value = "0.2,0.4")]
+    #[arg(long, value_delimiter = ',', default_value = "0.15,0.3,0.45")]
     pub amplitude_a: Vec<f64>,
     /// DC bias, A.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.55)]
     pub bias_a: f64,
+    /// Also record a quasi-static reversal (FORC) sweep from negative saturation (for `maglab
+    /// identify`): a full-range triangle at this rate, Hz (0: none).
+    #[arg(long, default_value_t = 0.0)]
+    pub forc_hz: f64,
     /// Van der Pol tracking runs: frequency scales, Hz (none by default).
     #[arg(long, value_delimiter = ',')]
     pub vdp_hz: Vec<f64>,
     /// μ of the Van der Pol runs.
     #[arg(long, default_value_t = 2.0)]
     pub vdp_mu: f64,
-    /// Duration of each experiment, s.
+    /// Duration of each sine and Van der Pol experiment, s.
     #[arg(long, default_value_t = 1.0)]
     pub duration_s: f64,
+    /// How each experiment starts: switch-on-demagnetized, demagnetized, negative-saturation,
+    /// positive-saturation, previous (no reset between experiments).
+    #[arg(long, default_value = "demagnetized")]
+    pub start: String,
+    /// Do not document the start state in dataset.json (the diagnosis then estimates it).
+    #[arg(long)]
+    pub undocumented: bool,
     /// Sampling rate, Hz.
     #[arg(long, default_value_t = 10_000.0)]
     pub rate_hz: f64,
+    /// What the current source does between command samples: hold or linear.
+    #[arg(long, default_value = "hold")]
+    pub current_between_samples: String,
+    /// The displacement is read this many samples after the current (|skew| < 1).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub skew_samples: f64,
+    /// Sensor offset, m.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub offset_m: f64,
     /// Sensor noise (standard deviation), m.
     #[arg(long, default_value_t = 0.15e-6)]
     pub noise_m: f64,
@@ -59,15 +79,8 @@ pub struct Args {
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// RK4 substeps per sample of the reference plant.
-    #[arg(long, default_value_t = 20)]
-    pub substeps: usize,
-    /// Preisach operator of the rig: 0 = the exact cell-uniform operator the parameter file
-    /// defines (default); K > 0 = the independent relay field with K relays per cell side (its
-    /// discretization error, ~1/K of a minor loop's swing, shows up as a DC-level gap).
-    #[arg(long, default_value_t = 0)]
-    pub relays: usize,
-    /// Also write the effects (the ground truth) to this JSON file (keep it outside the dataset).
+    /// Also write the effects and nuisances (the ground truth) to this JSON file (keep it
+    /// outside the dataset).
     #[arg(long, value_name = "FILE")]
     pub manifest: Option<PathBuf>,
 }
@@ -75,10 +88,18 @@ pub struct Args {
 /// Runs `maglab rig`.
 pub fn run(args: &Args) -> Result<()> {
     if args.list_effects {
-        for e in EffectName::ALL {
-            println!("{}", e.name());
-            for (k, v, what) in e.keys() {
-                println!("    {k} = {v}  ({what})");
+        for spec in EFFECTS {
+            println!(
+                "{}{}",
+                spec.name,
+                if spec.in_library {
+                    ""
+                } else {
+                    "  (not in the diagnosis library)"
+                }
+            );
+            for (k, v, lo, hi, what) in spec.keys {
+                println!("    {k} = {v}  in [{lo}, {hi}]  ({what})");
             }
         }
         return Ok(());
@@ -90,46 +111,81 @@ pub fn run(args: &Args) -> Result<()> {
     let effects = args
         .effects
         .iter()
-        .map(|t| RigEffect::parse(t).map_err(|e| anyhow!("--effect {t}: {e}")))
+        .map(|t| Effect::parse(t).map_err(|e| anyhow!("--effect {t}: {e}")))
         .collect::<Result<Vec<_>>>()?;
     for (name, list) in [("--freq", &args.freq), ("--amplitude-a", &args.amplitude_a)] {
         if let Some(v) = list.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
             bail!("{name}: every value must be a positive number, got {v}");
         }
     }
-    let mut excitations = rig::sine_sweep(&args.freq, &args.amplitude_a, args.bias_a);
-    for &f in &args.vdp_hz {
-        excitations.push(Excitation::VanDerPol {
-            frequency_scale_hz: f,
-            mu: args.vdp_mu,
-        });
-    }
-    let options = RigOptions {
+    let start = StartState::parse(&args.start).map_err(|e| anyhow!("--start: {e}"))?;
+    let current_between_samples = match args.current_between_samples.as_str() {
+        "hold" => CurrentBetweenSamples::Hold,
+        "linear" => CurrentBetweenSamples::Linear,
+        other => bail!("--current-between-samples: `{other}`: expected hold or linear"),
+    };
+    let settings = BenchSettings {
         rate_hz: args.rate_hz,
-        duration_s: args.duration_s,
-        substeps: args.substeps,
-        relay_subdivision: args.relays,
+        current_between_samples,
+        channel_skew_samples: args.skew_samples,
+        sensor_offset_m: args.offset_m,
         noise_m: args.noise_m,
         quantization_m: args.quantization_m,
         seed: args.seed,
     };
-    let total = (excitations.len() as f64 * args.duration_s * args.rate_hz) as u64;
-    let bar = ProgressBar::new(total).with_style(
-        ProgressStyle::with_template("rig {bar:40} {pos}/{len} samples ({eta})")
-            .map_err(|e| anyhow!("{e}"))?,
-    );
-    let experiments = rig::generate(&params, &effects, &excitations, &options, &|n| bar.inc(n))
-        .map_err(|e| anyhow!(e))?;
-    bar.finish_and_clear();
-    let paths = rig::write_dataset(&args.out, &experiments).map_err(|e| anyhow!(e))?;
+    settings.check().map_err(|e| anyhow!(e))?;
+    let mut experiments = Vec::new();
+    if args.forc_hz > 0.0 {
+        experiments.push(forc(&params, args.forc_hz, args.rate_hz)?);
+    }
+    for &f in &args.freq {
+        for &a in &args.amplitude_a {
+            experiments.push(bench::sine_experiment(
+                experiments.len(),
+                start,
+                args.bias_a,
+                a,
+                f,
+                args.duration_s,
+                args.rate_hz,
+            ));
+        }
+    }
+    for &f in &args.vdp_hz {
+        let n = experiments.len();
+        experiments.push(van_der_pol(
+            &params,
+            n,
+            start,
+            f,
+            args.vdp_mu,
+            args.duration_s,
+            args.rate_hz,
+        )?);
+    }
+    let started = std::time::Instant::now();
+    let recordings =
+        bench::record_all(&params, &effects, &experiments, &settings).map_err(|e| anyhow!(e))?;
+    let mut recordings = recordings;
+    let paths = bench::write_dataset(&args.out, &recordings).map_err(|e| anyhow!(e))?;
+    if args.undocumented {
+        std::fs::remove_file(args.out.join(maglab_identify::dataset_info::FILE_NAME)).ok();
+    }
     println!(
-        "wrote {} experiments to {} ({} s each at {} Hz)",
+        "wrote {} experiments to {} ({:.1} s of plant time at {} Hz in {:.1} s){}",
         paths.len(),
         args.out.display(),
-        args.duration_s,
-        args.rate_hz
+        recordings.iter().map(|r| r.t_s.len()).sum::<usize>() as f64 / args.rate_hz,
+        args.rate_hz,
+        started.elapsed().as_secs_f64(),
+        if args.undocumented {
+            "; start states not documented"
+        } else {
+            ""
+        }
     );
-    let described: Vec<String> = effects.iter().map(|e| e.describe()).collect();
+    recordings.clear();
+    let described: Vec<String> = effects.iter().map(|e| e.to_string()).collect();
     println!(
         "effects: {}",
         if described.is_empty() {
@@ -141,9 +197,16 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(path) = &args.manifest {
         let manifest = serde_json::json!({
             "effects": effects.iter().map(|e| serde_json::json!({
-                "name": e.name.name(),
-                "parameters": e.values.iter().map(|(k, v)| (k.to_string(), *v)).collect::<std::collections::BTreeMap<_, _>>(),
+                "name": e.name(),
+                "parameters": e.spec.keys.iter().zip(&e.values).map(|(k, v)| (k.0.to_string(), *v)).collect::<std::collections::BTreeMap<_, _>>(),
             })).collect::<Vec<_>>(),
+            "nuisances": {
+                "current_between_samples": args.current_between_samples,
+                "channel_skew_samples": args.skew_samples,
+                "sensor_offset_m": args.offset_m,
+                "start_state": args.start,
+                "documented": !args.undocumented,
+            },
             "noise_m": args.noise_m,
             "quantization_m": args.quantization_m,
             "seed": args.seed,
@@ -153,4 +216,66 @@ pub fn run(args: &Args) -> Result<()> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The quasi-static reversal sweep of `maglab excite`, from negative saturation.
+fn forc(
+    params: &actuator_params::ActuatorParams,
+    sweep_hz: f64,
+    rate_hz: f64,
+) -> Result<Experiment> {
+    let e = maglab_identify::excite::forc_excitation(&maglab_identify::excite::ExciteOptions {
+        h_min_a_per_m: params.preisach.h_min_a_per_m,
+        h_max_a_per_m: params.preisach.h_max_a_per_m,
+        coil_factor_per_m: params.actuator.coil_factor_per_m,
+        sweep_rate_hz: sweep_hz,
+        sample_rate_hz: rate_hz,
+        overdrive: 0.05,
+    })
+    .map_err(|e| anyhow!("--forc-hz: {e}"))?;
+    Ok(Experiment {
+        name: "00_forc".into(),
+        start: StartState::NegativeSaturation,
+        current_a: e.current_a,
+        description: format!("FORC reversal sweep, {sweep_hz} Hz full-range triangle rate"),
+    })
+}
+
+/// The current the dynamic-inverse tracking loop (`magctl::inverse::ControlLoop`) commands for a
+/// Van der Pol trajectory, open loop.
+#[allow(clippy::too_many_arguments)]
+fn van_der_pol(
+    params: &actuator_params::ActuatorParams,
+    index: usize,
+    start: StartState,
+    frequency_scale_hz: f64,
+    mu: f64,
+    duration_s: f64,
+    rate_hz: f64,
+) -> Result<Experiment> {
+    let mut core = magctl::params::ActuatorParameters::from_file(params, "parameter file")?;
+    core.control.sample_rate_hz = rate_hz as f32;
+    core.trajectory.frequency_scale_hz = frequency_scale_hz as f32;
+    core.trajectory.van_der_pol_mu = mu as f32;
+    let p = &core.preisach;
+    let measure = magctl::preisach::PreisachMeasure::new(
+        &p.weights_a_per_m,
+        p.h_min_a_per_m,
+        p.h_max_a_per_m,
+    );
+    let control = magctl::inverse::ControlLoop::new(&measure, &core)
+        .map_err(|e| anyhow!("Van der Pol tracking loop: {e:?}"))?;
+    let kind = magctl::inverse::InverseKind::Dynamic;
+    let mut state = control.init::<64>(kind);
+    let n = (duration_s * rate_hz).round() as usize;
+    Ok(Experiment {
+        name: format!("{index:02}_vdp_{frequency_scale_hz:07.1}hz_mu{mu:.2}"),
+        start,
+        current_a: (0..n)
+            .map(|_| control.tick(kind, &mut state).current_a as f64)
+            .collect(),
+        description: format!(
+            "Van der Pol tracking command, {frequency_scale_hz} Hz scale, mu {mu}"
+        ),
+    })
 }

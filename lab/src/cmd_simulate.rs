@@ -5,13 +5,16 @@
 //! * `--freq 1,50,100,200,400` sines with DC bias (`--bias-a`, `--amplitude-a`), one run per
 //!   frequency, each from the same demagnetized state at equilibrium under the bias, for
 //!   `--periods` periods; the last period is the steady-state loop.
-//! * `--current-csv FILE` with header `t_s,current_a`: the current is held from each sample to
-//!   the next (what a DAC does) and sampled at the control rate.
+//! * `--current-csv FILE` with the columns `t_s` and `current_a` (others, such as a measurement
+//!   file's `displacement_m`, are ignored): the current is held from each sample to the next
+//!   (what a DAC does) and sampled at the control rate.
 //! * `--van-der-pol` a Van der Pol-shaped current `bias + amplitude · x(t) / max|x|`
 //!   (`--vdp-mu`, `--vdp-frequency-hz`), the oscillator of the trajectory generator.
 //!
 //! Outputs in `--out` (default `out/simulate`): one CSV per run with
-//! `t_s,current_a,h_a_per_m,m_a_per_m,displacement_m`, `loops.png/.svg` (displacement against
+//! `t_s,current_a,h_a_per_m,m_a_per_m,displacement_m`, row `k` the state at `t_k = k / rate`
+//! before the current of row `k` acts (the measurement files' convention, so a simulated file
+//! lines up with a measured one sample for sample), `loops.png/.svg` (displacement against
 //! current over the last period, one curve per frequency: the paper's Figure 6 shape) and
 //! `traces.png/.svg` (current and displacement against time).
 
@@ -240,11 +243,21 @@ fn simulate(
     let mut state: ModelState = dynamic.equilibrium(measure.demagnetized(), first);
     let mut samples = Vec::with_capacity(input.currents_a.len());
     for (k, &i) in input.currents_a.iter().enumerate() {
-        let out = match kind {
+        // Row k is the state at t_k, before the current of row k acts (the measurement files'
+        // convention, so a simulated file lines up with a measured one sample for sample).
+        let before = ModelOutput {
+            current_a: i as f32,
+            h_a_per_m: state.h_a_per_m,
+            m_a_per_m: state.m_a_per_m,
+            displacement_m: state.displacement_m,
+            velocity_m_per_s: state.velocity_m_per_s,
+            current_rejected: false,
+        };
+        samples.push((k as f64 / rate_hz, i, before));
+        match kind {
             ModelKind::Dynamic => dynamic.step(&mut state, i as f32),
             ModelKind::Static => statics.step(&mut state, i as f32),
         };
-        samples.push(((k + 1) as f64 / rate_hz, i, out));
         if k % 4096 == 4095 {
             progress.advance(4096);
         }
@@ -257,7 +270,9 @@ fn simulate(
     }
 }
 
-/// Reads `t_s,current_a` and resamples it at `rate_hz` by holding each sample until the next.
+/// Reads the columns `t_s` and `current_a` (by name; other columns, such as a measurement file's
+/// `displacement_m`, are ignored) and resamples the current at `rate_hz` by holding each sample
+/// until the next.
 fn read_current_csv(path: &Path, rate_hz: f64) -> Result<Vec<f64>> {
     let name = path.display();
     let mut reader = csv::ReaderBuilder::new()
@@ -270,36 +285,43 @@ fn read_current_csv(path: &Path, rate_hz: f64) -> Result<Vec<f64>> {
         .with_context(|| format!("{name}: line 1: cannot read the header"))?
         .clone();
     let expected = ["t_s", "current_a"];
-    if headers.len() != 2 || headers.iter().zip(expected).any(|(a, b)| a != b) {
-        bail!(
-            "{name}: line 1: header must be `t_s,current_a`, found `{}`",
-            headers.iter().collect::<Vec<_>>().join(",")
-        );
-    }
+    let columns: Vec<usize> = expected
+        .iter()
+        .map(|want| headers.iter().position(|h| h == *want))
+        .collect::<Option<Vec<_>>>()
+        .with_context(|| {
+            format!(
+                "{name}: line 1: the header needs the columns `t_s` and `current_a`, found `{}`",
+                headers.iter().collect::<Vec<_>>().join(",")
+            )
+        })?;
     let mut samples: Vec<(f64, f64)> = Vec::new();
     for (row, record) in reader.records().enumerate() {
         let line = row + 2;
         let record = record.with_context(|| format!("{name}: line {line}: malformed row"))?;
-        if record.len() != 2 {
+        if record.len() != headers.len() {
             bail!(
-                "{name}: line {line}: expected 2 columns, found {}",
+                "{name}: line {line}: expected {} columns, found {}",
+                headers.len(),
                 record.len()
             );
         }
         let mut values = [0.0f64; 2];
-        for (col, (field, value)) in record.iter().zip(values.iter_mut()).enumerate() {
+        for (k, value) in values.iter_mut().enumerate() {
+            let col = columns[k];
+            let field = record.get(col).unwrap_or("");
             *value = field.parse::<f64>().with_context(|| {
                 format!(
                     "{name}: line {line}, column {} (`{}`): `{field}` is not a number",
                     col + 1,
-                    expected[col]
+                    expected[k]
                 )
             })?;
             if !value.is_finite() {
                 bail!(
                     "{name}: line {line}, column {} (`{}`): value {field} is not finite",
                     col + 1,
-                    expected[col]
+                    expected[k]
                 );
             }
         }
@@ -507,7 +529,7 @@ mod tests {
     fn bad_current_files_name_file_line_and_column() {
         let e = error_of("header.csv", "t_s,current\n0,0.5\n");
         assert!(
-            e.contains("header.csv: line 1: header must be `t_s,current_a`"),
+            e.contains("header.csv: line 1: the header needs the columns `t_s` and `current_a`"),
             "{e}"
         );
         let e = error_of("number.csv", "t_s,current_a\n0,0.5\n0.001,abc\n");
@@ -532,5 +554,14 @@ mod tests {
         );
         let e = error_of("columns.csv", "t_s,current_a\n0,0.5\n0.001,0.5,7\n");
         assert!(e.contains("columns.csv: line 3"), "{e}");
+        // A measurement file (with its displacement column) is a current file too.
+        let path = write(
+            "measurement.csv",
+            "t_s,current_a,displacement_m\n0,0.5,1e-6\n0.001,0.7,2e-6\n0.002,0.1,3e-6\n",
+        );
+        assert_eq!(
+            read_current_csv(&path, 1000.0).unwrap(),
+            vec![0.5, 0.7, 0.1]
+        );
     }
 }

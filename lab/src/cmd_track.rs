@@ -1,12 +1,13 @@
-//! `maglab track`: the inverse controller on the host against the reference plant — the paper's
+//! `maglab track`: the inverse controller on the host against the bench plant — the paper's
 //! Figures 7 (dynamic inverse) and 8 (static inverse).
 //!
 //! The controller is `magctl::inverse::ControlLoop`, the code the firmware's timer interrupt runs
 //! (the QEMU check proves the firmware's command stream equals the host's bit for bit); the plant
-//! is the independent f64 reference (`host_tests::reference::dynamics`, relay-level Preisach
-//! operator, RK4 with 100 substeps per period), started in the state the controller assumes
-//! (`host_tests::tracking`). Both inverses track the same Van der Pol trajectory from the
-//! parameter file.
+//! is the bench plant (`maglab-plant`: its own f64 Preisach operator and RK4 integrator, no code
+//! shared with the controller's model), with `--effect` switched on if asked, started in the
+//! state the controller assumes (memory driven from negative saturation to the first field, the
+//! rod moving as the trajectory at its first sample). Both inverses track the same Van der Pol
+//! trajectory from the parameter file.
 //!
 //! With `--capture out/qemu/capture.csv` the current commands are not computed on the host but
 //! read from a QEMU firmware run (`cargo xtask qemu`), so the figures show the firmware's own
@@ -25,8 +26,9 @@ use crate::params_io::{self, LoadedParams};
 use crate::plot::{Figure, Panel, Series, PALETTE};
 use anyhow::{bail, Context, Result};
 use clap::Args as ClapArgs;
-use host_tests::tracking::{self, TrackingStats};
 use magctl::inverse::{ControlLoop, InverseKind};
+use maglab_identify::dataset_info::StartState;
+use maglab_plant::{Effect, Plant};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `maglab track`.
@@ -38,10 +40,10 @@ pub struct Args {
     /// Time span shown in the figures (from the start), s.
     #[arg(long, default_value_t = 0.1)]
     pub plot_s: f64,
-    /// Relays per Preisach-cell side in the reference plant (accuracy vs run time; the relay
-    /// operator's error falls like 1/k).
-    #[arg(long, default_value_t = tracking::RELAY_SUBDIVISION)]
-    pub relays_per_cell: usize,
+    /// An effect of the plant, `name` or `name:key=value,...` (repeatable; see `maglab rig
+    /// --list-effects`): the controller then meets a plant its model does not describe.
+    #[arg(long = "effect")]
+    pub effects: Vec<String>,
     /// Read the current commands of a QEMU run (`out/qemu/capture.csv` from `cargo xtask qemu`)
     /// instead of computing them on the host.
     #[arg(long, value_name = "FILE")]
@@ -138,22 +140,92 @@ pub fn read_capture(path: &Path) -> Result<[(Vec<f32>, Vec<f64>); 2]> {
     Ok(out)
 }
 
-/// Runs both inverses (or replays a capture) against the reference plant.
+/// Error statistics of one run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackingStats {
+    /// RMS of `y - ȳ`, m.
+    pub rms_error_m: f64,
+    /// Largest `|y - ȳ|`, m.
+    pub max_error_m: f64,
+    /// Peak-to-peak of the desired trajectory `ȳ`, m.
+    pub peak_to_peak_m: f64,
+}
+
+impl TrackingStats {
+    /// Statistics of `actual` against `desired` (same sample times).
+    pub fn of(desired_m: &[f64], actual_m: &[f64]) -> Self {
+        let (mut sq, mut max, mut lo, mut hi) = (0.0f64, 0.0f64, f64::MAX, f64::MIN);
+        for (&d, &a) in desired_m.iter().zip(actual_m) {
+            let e = a - d;
+            sq += e * e;
+            max = max.max(e.abs());
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+        TrackingStats {
+            rms_error_m: (sq / desired_m.len().max(1) as f64).sqrt(),
+            max_error_m: max,
+            peak_to_peak_m: (hi - lo).max(0.0),
+        }
+    }
+
+    /// RMS error relative to the peak-to-peak, %.
+    pub fn rms_percent(&self) -> f64 {
+        100.0 * self.rms_error_m / self.peak_to_peak_m.max(1e-300)
+    }
+
+    /// Largest error relative to the peak-to-peak, %.
+    pub fn max_percent(&self) -> f64 {
+        100.0 * self.max_error_m / self.peak_to_peak_m.max(1e-300)
+    }
+}
+
+/// The plant's displacement at the end of every period under `currents_a` (each held over a
+/// period), started as the controller assumes.
+fn plant_response(
+    loaded: &LoadedParams,
+    control: &ControlLoop<'_>,
+    kind: InverseKind,
+    effects: &[Effect],
+    currents_a: &[f32],
+) -> Result<Vec<f64>> {
+    let rate = loaded.params.control.sample_rate_hz as f64;
+    let mut plant = Plant::new(&loaded.file, effects, rate).map_err(|e| anyhow::anyhow!(e))?;
+    let start: magctl::inverse::LoopState<{ magctl::preisach::DEFAULT_CAPACITY }> =
+        control.init(kind);
+    let desired = control.trajectory().motion(&start.core.trajectory);
+    let c0 = loaded.params.actuator.coil_factor_per_m as f64;
+    plant.start(
+        StartState::NegativeSaturation,
+        start.core.memory.h_a_per_m as f64 / c0,
+    );
+    plant.set_motion(
+        desired.displacement_m as f64,
+        desired.velocity_m_per_s as f64,
+    );
+    Ok(currents_a
+        .iter()
+        .map(|&i| {
+            plant.advance(i as f64, i as f64);
+            plant.trim_history(0.01);
+            plant.displacement_m()
+        })
+        .collect())
+}
+
+/// Runs both inverses (or replays a capture) against the bench plant.
 pub fn track(
     loaded: &LoadedParams,
     duration_s: f64,
-    relays_per_cell: usize,
+    effects: &[Effect],
     capture: Option<&Path>,
 ) -> Result<Tracking> {
     let params = &loaded.params;
     let measure = loaded.measure();
     let control = ControlLoop::new(&measure, params)
         .map_err(|e| anyhow::anyhow!("{}: invalid control settings: {e:?}", loaded.origin))?;
-    let field = tracking::relay_field(params, relays_per_cell)
-        .map_err(|e| anyhow::anyhow!("reference relay field: {}", e.0))?;
     let rate = params.control.sample_rate_hz as f64;
     let period_s = 1.0 / rate;
-    let constants = tracking::plant_constants(&params.actuator);
     let captured = match capture {
         Some(path) => Some(read_capture(path)?),
         None => None,
@@ -162,11 +234,13 @@ pub fn track(
     if captured.is_none() && ticks == 0 {
         bail!("--duration-s {duration_s} is shorter than one control period ({period_s} s)");
     }
-    let run = |kind: InverseKind, slot: usize| -> Run {
+    let run = |kind: InverseKind, slot: usize| -> Result<Run> {
         let (currents, desired): (Vec<f32>, Vec<f64>) = match &captured {
             Some(c) => c[slot].clone(),
             None => {
-                let outputs = tracking::run_controller(&control, kind, ticks);
+                let mut state: magctl::inverse::LoopState<{ magctl::preisach::DEFAULT_CAPACITY }> =
+                    control.init(kind);
+                let outputs: Vec<_> = (0..ticks).map(|_| control.tick(kind, &mut state)).collect();
                 (
                     outputs.iter().map(|t| t.current_a).collect(),
                     outputs
@@ -176,19 +250,18 @@ pub fn track(
                 )
             }
         };
-        let actual =
-            tracking::plant_response(&control, kind, constants, &field, period_s, &currents);
-        Run {
+        let actual = plant_response(loaded, &control, kind, effects, &currents)?;
+        Ok(Run {
             stats: TrackingStats::of(&desired, &actual),
             current_a: currents.iter().map(|&i| i as f64).collect(),
             desired_m: desired,
             actual_m: actual,
-        }
+        })
     };
     Ok(Tracking {
         period_s,
-        dynamic: run(InverseKind::Dynamic, 0),
-        static_: run(InverseKind::Static, 1),
+        dynamic: run(InverseKind::Dynamic, 0)?,
+        static_: run(InverseKind::Static, 1)?,
     })
 }
 
@@ -241,7 +314,7 @@ fn figure(run: &Run, period_s: f64, plot_s: f64, title: &str) -> Figure {
     );
     displacement.series = vec![
         series(Some("desired ȳ"), um(&run.desired_m), 0, 2),
-        series(Some("actual y (reference plant)"), um(&run.actual_m), 2, 2),
+        series(Some("actual y (bench plant)"), um(&run.actual_m), 2, 2),
     ];
     let mut error = Panel::new(
         &format!(
@@ -296,31 +369,25 @@ pub fn run(args: &Args) -> Result<()> {
     if !(args.plot_s.is_finite() && args.plot_s > 0.0) {
         bail!("--plot-s must be a positive number, got {}", args.plot_s);
     }
-    if !(1..=256).contains(&args.relays_per_cell) {
-        bail!(
-            "--relays-per-cell must be in 1..=256, got {}",
-            args.relays_per_cell
-        );
-    }
+    let effects = args
+        .effects
+        .iter()
+        .map(|t| Effect::parse(t).map_err(|e| anyhow::anyhow!("--effect {t}: {e}")))
+        .collect::<Result<Vec<_>>>()?;
     let loaded = params_io::load(args.params.as_deref())?;
     println!("parameters: {} ({})", loaded.origin, loaded.provenance);
     let started = std::time::Instant::now();
-    let t = track(
-        &loaded,
-        args.duration_s,
-        args.relays_per_cell,
-        args.capture.as_deref(),
-    )?;
+    let t = track(&loaded, args.duration_s, &effects, args.capture.as_deref())?;
     let source = match &args.capture {
         Some(p) => format!("current commands from the QEMU capture {}", p.display()),
         None => "current commands from magctl::inverse::ControlLoop on the host".to_string(),
     };
+    let described: Vec<String> = effects.iter().map(|e| e.to_string()).collect();
     println!(
-        "tracking the Van der Pol trajectory (p2p {:.3e} m) for {} periods; {source}; reference plant with {} relays per cell side, {} RK4 substeps per period ({:.1} s):",
+        "tracking the Van der Pol trajectory (p2p {:.3e} m) for {} periods; {source}; bench plant, effects: {} ({:.1} s):",
         t.dynamic.stats.peak_to_peak_m,
         t.dynamic.desired_m.len(),
-        args.relays_per_cell,
-        tracking::SUBSTEPS,
+        if described.is_empty() { "none".to_string() } else { described.join("; ") },
         started.elapsed().as_secs_f64()
     );
     report("dynamic inverse", &t.dynamic.stats);
@@ -359,15 +426,14 @@ mod tests {
     /// A short run writes every output, and the dynamic inverse beats the static one by the
     /// margin the acceptance asks for (RMS ≤ 1 % of p2p; the static inverse several times worse:
     /// its phase lag at the ≈ 94 Hz fundamental alone is ≈ 0.37 rad, ~13 % of p2p in RMS).
-    /// 0.05 s (≈ 5 periods of the trajectory) with 16 relays per cell keeps it fast; the relay
-    /// error at k = 16 is ≈ 0.7 % of p2p (measured, see `magctl::inverse` docs), inside the 1 %.
+    /// 0.05 s (≈ 5 periods of the trajectory) keeps it fast.
     #[test]
     fn short_run_writes_outputs_and_dynamic_beats_static() {
         let out = temp_dir("run");
         let args = Args {
             duration_s: 0.05,
             plot_s: 0.02,
-            relays_per_cell: 16,
+            effects: Vec::new(),
             capture: None,
             params: None,
             out: out.clone(),
@@ -388,7 +454,7 @@ mod tests {
             .lines()
             .count();
         assert_eq!(rows, 1 + 500);
-        let t = track(&params_io::load(None).unwrap(), 0.05, 16, None).unwrap();
+        let t = track(&params_io::load(None).unwrap(), 0.05, &[], None).unwrap();
         assert!(
             t.dynamic.stats.rms_percent() <= 1.0,
             "{:?}",
@@ -405,7 +471,7 @@ mod tests {
     fn capture_replay_matches_the_host_run() {
         let dir = temp_dir("capture");
         let loaded = params_io::load(None).unwrap();
-        let host = track(&loaded, 0.01, 8, None).unwrap();
+        let host = track(&loaded, 0.01, &[], None).unwrap();
         let mut text = String::from("phase,index,t_s,current_a,y_desired_m,instructions\n");
         for (name, run) in [("dynamic", &host.dynamic), ("static", &host.static_)] {
             for (k, (i, y)) in run.current_a.iter().zip(&run.desired_m).enumerate() {
@@ -418,7 +484,7 @@ mod tests {
         text.push_str("naive,0,0,1.0,2e-5,400000\n");
         let path = dir.join("capture.csv");
         std::fs::write(&path, text).unwrap();
-        let replay = track(&loaded, 0.01, 8, Some(&path)).unwrap();
+        let replay = track(&loaded, 0.01, &[], Some(&path)).unwrap();
         assert_eq!(replay.dynamic.actual_m, host.dynamic.actual_m);
         assert_eq!(replay.static_.actual_m, host.static_.actual_m);
         std::fs::remove_dir_all(&dir).ok();

@@ -24,6 +24,9 @@ pub struct LoadedParams {
     pub origin: String,
     /// The file's `provenance.source`.
     pub provenance: String,
+    /// The same parameters as a parameter file (f64; for the baked ones, widened from the f32
+    /// constants), for the f64 tools (the bench plant).
+    pub file: ActuatorParams,
 }
 
 impl LoadedParams {
@@ -41,6 +44,7 @@ pub fn load(path: Option<&Path>) -> Result<LoadedParams> {
             params: BAKED_PARAMETERS,
             origin: format!("baked into this build from {BAKED_PARAMETERS_SOURCE}"),
             provenance: BAKED_PARAMETERS_PROVENANCE.to_string(),
+            file: widen(&BAKED_PARAMETERS),
         }),
         Some(path) => {
             let file = ActuatorParams::load(path).context("invalid parameter file")?;
@@ -48,9 +52,44 @@ pub fn load(path: Option<&Path>) -> Result<LoadedParams> {
                 params: to_core(&file).with_context(|| format!("converting {}", path.display()))?,
                 origin: path.display().to_string(),
                 provenance: file.provenance.source.clone(),
+                file,
             })
         }
     }
+}
+
+/// The core's f32 parameters as a parameter file (every value widened exactly to f64).
+pub fn widen(p: &ActuatorParameters) -> ActuatorParams {
+    let mut file = actuator_params::paper_defaults();
+    let a = &p.actuator;
+    file.actuator = actuator_params::Actuator {
+        coil_turns: a.coil_turns as f64,
+        rod_area_m2: a.rod_area_m2 as f64,
+        rod_length_m: a.rod_length_m as f64,
+        coil_factor_per_m: a.coil_factor_per_m as f64,
+        saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m as f64,
+        saturation_magnetostriction: a.saturation_magnetostriction as f64,
+        resonance_hz: a.resonance_hz as f64,
+        eddy_resistance_ohm: a.eddy_resistance_ohm as f64,
+        damping_ratio: a.damping_ratio as f64,
+    };
+    file.preisach.h_min_a_per_m = p.preisach.h_min_a_per_m as f64;
+    file.preisach.h_max_a_per_m = p.preisach.h_max_a_per_m as f64;
+    file.preisach.weights_a_per_m = p
+        .preisach
+        .weights_a_per_m
+        .iter()
+        .map(|&w| w as f64)
+        .collect();
+    file.control.sample_rate_hz = p.control.sample_rate_hz as f64;
+    file.control.current_limit_a = p.control.current_limit_a as f64;
+    file.control.current_slew_limit_a_per_s = p.control.current_slew_limit_a_per_s as f64;
+    file.trajectory.van_der_pol_mu = p.trajectory.van_der_pol_mu as f64;
+    file.trajectory.frequency_scale_hz = p.trajectory.frequency_scale_hz as f64;
+    file.trajectory.displacement_min_m = p.trajectory.displacement_min_m as f64;
+    file.trajectory.displacement_max_m = p.trajectory.displacement_max_m as f64;
+    file.provenance.source = format!("baked into this build from {BAKED_PARAMETERS_SOURCE}");
+    file
 }
 
 /// Converts a validated parameter file to the core's f32 types (the same narrowing `build.rs`

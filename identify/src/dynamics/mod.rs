@@ -5,11 +5,13 @@
 //!   current, from the experiment's initial state.
 //! * [`phase_lag`]: the paper's scheme (grid over `R_eddy`, `ξ` from the phase of (5), least
 //!   spread of `ξ` across frequencies) — the Figure 5 data.
-//! * [`waveform`]: the direct nonlinear least-squares fit of `(R_eddy, ξ, f0)` to the measured
-//!   waveforms, started from the phase-lag result.
+//! * [`RefinedFit`]: the final fit of `(R_eddy, ξ, f0)` to the measured waveforms with the
+//!   recording's nuisances estimated, started from the phase-lag result: made by the caller with
+//!   the diagnosis' model (`maglab identify` uses `maglab_diagnose::identification`, the model the
+//!   diagnosis refits), recorded here.
 //! * [`record`]: the identified values and their provenance in the parameter file.
-//! * [`fit_eddy_and_damping`]: both, side by side — the library entry point (`maglab identify`,
-//!   `maglab diagnose`).
+//! * [`fit_eddy_and_damping`]: the phase-lag scheme on every experiment, the library entry point
+//!   of `maglab identify`.
 //!
 //! **Steady-state window.** Each experiment is analysed on whole periods after a settling time
 //! `max(settle_periods / f, settle_time_constants / (ξ ω0))` (base `ξ`, `f0`): the mechanical
@@ -24,7 +26,6 @@
 pub mod phase_lag;
 pub mod record;
 pub mod simulate;
-pub mod waveform;
 
 use crate::experiments::DynamicExperiment;
 use crate::spectrum::{harmonic_fit, wrap_lag_rad, HarmonicFit};
@@ -35,7 +36,6 @@ use std::ops::Range;
 
 pub use phase_lag::{Candidate, PhaseLagResult};
 pub use simulate::{CurrentBetweenSamples, Start};
-pub use waveform::WaveformResult;
 
 /// Resistivity of Terfenol-D, Ω·m (see the module docs).
 pub const TERFENOL_RESISTIVITY_OHM_M: f64 = 6e-7;
@@ -75,10 +75,6 @@ pub struct DynamicOptions {
     pub fine_points: usize,
     /// `f0` assumed by the phase-lag scheme, Hz (`None`: the base file's).
     pub phase_lag_resonance_hz: Option<f64>,
-    /// Run the waveform fit after the phase-lag scheme.
-    pub waveform_fit: bool,
-    /// Levenberg-Marquardt budget: at most `max_iterations · 4` model evaluations.
-    pub max_iterations: usize,
 }
 
 impl Default for DynamicOptions {
@@ -92,8 +88,6 @@ impl Default for DynamicOptions {
             coarse_points: 40,
             fine_points: 21,
             phase_lag_resonance_hz: None,
-            waveform_fit: true,
-            max_iterations: 40,
         }
     }
 }
@@ -253,14 +247,27 @@ pub struct ExperimentReport {
     pub window: Range<usize>,
     /// Measured `θ_{y,I}`, degrees.
     pub measured_lag_deg: f64,
+    /// Measured displacement, m.
+    pub measured_m: Vec<f64>,
     /// Predicted displacement over the whole record with the phase-lag parameters, m.
     pub predicted_phase_lag_m: Vec<f64>,
-    /// Predicted displacement with the waveform-fit parameters, m (if run).
-    pub predicted_waveform_m: Option<Vec<f64>>,
+    /// Predicted displacement with the refined parameters (nuisances included), m (if refined).
+    pub predicted_refined_m: Option<Vec<f64>>,
     /// NRMSE over the window, phase-lag parameters.
     pub nrmse_phase_lag: f64,
-    /// NRMSE over the window, waveform-fit parameters.
-    pub nrmse_waveform: Option<f64>,
+    /// NRMSE over the window, refined parameters.
+    pub nrmse_refined: Option<f64>,
+}
+
+/// The final fit of `(R_eddy, ξ, f0)` with the recording's nuisances (module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RefinedFit {
+    /// The parameters.
+    pub params: DynamicParams,
+    /// `√(Σ NRMSE_k² / K)` over the experiments' steady-state windows.
+    pub rms_nrmse: f64,
+    /// How it was made and what it estimated, for the provenance.
+    pub details: serde_json::Value,
 }
 
 /// Both methods' results.
@@ -270,8 +277,8 @@ pub struct DynamicFit {
     pub phase_lag: PhaseLagResult,
     /// Its parameters: `(R_eddy, mean ξ, f0 assumed)`.
     pub phase_lag_params: DynamicParams,
-    /// The direct fit (if run).
-    pub waveform: Option<WaveformResult>,
+    /// The final fit (if the caller made one).
+    pub refined: Option<RefinedFit>,
     /// Per experiment.
     pub experiments: Vec<ExperimentReport>,
     /// Options used.
@@ -279,11 +286,37 @@ pub struct DynamicFit {
 }
 
 impl DynamicFit {
-    /// The parameters to write: the waveform fit's if it ran, else the phase-lag scheme's.
+    /// The parameters to write: the refined fit's if there is one, else the phase-lag scheme's.
     pub fn best(&self) -> DynamicParams {
-        self.waveform
+        self.refined
             .as_ref()
             .map_or(self.phase_lag_params, |w| w.params)
+    }
+
+    /// Records the refined fit and its predictions (`(file, displacement)`, as
+    /// [`ExperimentReport::file`] names them); fills each report's refined NRMSE over its window.
+    pub fn attach_refined(&mut self, refined: RefinedFit, predictions: &[(String, Vec<f64>)]) {
+        let mut sum = 0.0;
+        for r in self.experiments.iter_mut() {
+            if let Some((_, p)) = predictions.iter().find(|(f, _)| *f == r.file) {
+                let n = r.window.len().max(1) as f64;
+                let y = &r.measured_m;
+                let (lo, hi) = r
+                    .window
+                    .clone()
+                    .fold((f64::MAX, f64::MIN), |(a, b), k| (a.min(y[k]), b.max(y[k])));
+                let e = (r.window.clone().map(|k| (p[k] - y[k]).powi(2)).sum::<f64>() / n).sqrt()
+                    / (hi - lo).max(1e-300);
+                sum += e * e;
+                r.nrmse_refined = Some(e);
+                r.predicted_refined_m = Some(p.clone());
+            }
+        }
+        let k = self.experiments.len().max(1) as f64;
+        self.refined = Some(RefinedFit {
+            rms_nrmse: (sum / k).sqrt(),
+            ..refined
+        });
     }
 }
 
@@ -299,9 +332,10 @@ fn nrmse_window(pred: &[f64], e: &PreparedExperiment<'_>) -> f64 {
         / e.displacement_range_m
 }
 
-/// Identifies `R_eddy`, `ξ` (phase-lag scheme) and then `R_eddy`, `ξ`, `f0` (waveform fit) from
-/// `experiments`, with the Preisach masses and constants of `base` (normally the parameters the
-/// quasi-static identification just produced). `progress` is called from worker threads.
+/// Identifies `R_eddy`, `ξ` by the phase-lag scheme from `experiments`, with the Preisach masses
+/// and constants of `base` (normally the parameters the quasi-static identification just
+/// produced); the caller may then attach a refined fit ([`DynamicFit::attach_refined`]).
+/// `progress` is called from worker threads.
 pub fn fit_eddy_and_damping(
     experiments: &[DynamicExperiment],
     base: &ActuatorParams,
@@ -319,25 +353,12 @@ pub fn fit_eddy_and_damping(
         damping_ratio: phase_lag.chosen.weighted_mean,
         resonance_hz,
     };
-    let waveform = if options.waveform_fit {
-        Some(waveform::waveform_fit(
-            &measure,
-            &prepared,
-            phase_lag_params,
-            progress,
-        )?)
-    } else {
-        None
-    };
     let reports = prepared
         .experiments
         .iter()
         .map(|e| {
             let m = &e.experiment.measurement;
             let pl = run(&measure, base, &phase_lag_params, m, &options.simulation).displacement_m;
-            let wf = waveform
-                .as_ref()
-                .map(|w| run(&measure, base, &w.params, m, &options.simulation).displacement_m);
             ExperimentReport {
                 file: file_name(e.experiment),
                 frequency_hz: e.experiment.frequency_hz,
@@ -345,17 +366,18 @@ pub fn fit_eddy_and_damping(
                 current_amplitude_a: e.phasors.current.amplitude(),
                 window: e.window.clone(),
                 measured_lag_deg: e.phasors.lag_rad().to_degrees(),
+                measured_m: m.displacement_m.clone(),
                 nrmse_phase_lag: nrmse_window(&pl, e),
-                nrmse_waveform: wf.as_ref().map(|w| nrmse_window(w, e)),
+                nrmse_refined: None,
                 predicted_phase_lag_m: pl,
-                predicted_waveform_m: wf,
+                predicted_refined_m: None,
             }
         })
         .collect();
     Ok(DynamicFit {
         phase_lag,
         phase_lag_params,
-        waveform,
+        refined: None,
         experiments: reports,
         options: *options,
     })

@@ -10,7 +10,7 @@
 //!    `tan θ = 2ξ r / (1 − r²)`, `r = f_k / f0`, hence `ξ_k⁽ⁱ⁾ = tan θ (1 − r²) / (2 r)`.
 //!
 //! `f0` is not identified by the scheme: the paper measured it separately (392 Hz); here it is the
-//! base file's value (the direct waveform fit, [`super::waveform`], identifies it).
+//! base file's value (the refined fit, [`super::RefinedFit`], identifies it).
 //!
 //! **Candidates.** `[0, R̄]` with `R̄ = 8πρN_m²/l_m` (the formula of Section 4 with `a = 0`: the
 //! rod radius `b` cancels). The dynamics of (4) depend on `R_eddy` through the time constant

@@ -1,4 +1,4 @@
-//! Writes a dynamic identification into a parameter file: the values of the waveform fit (or of
+//! Writes a dynamic identification into a parameter file: the values of the refined fit (or of
 //! the phase-lag scheme when the fit was not run), and a provenance section with both methods'
 //! results side by side, their residuals, the options and every file's classification.
 
@@ -26,7 +26,7 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
         "actuator.damping_ratio",
         "actuator.resonance_hz",
     ];
-    let written: &[&str] = if fit.waveform.is_some() {
+    let written: &[&str] = if fit.refined.is_some() {
         &fields
     } else {
         &fields[..2]
@@ -37,7 +37,7 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
         }
     }
     d.insert("identified".into(), json!(identified));
-    if fit.waveform.is_some() {
+    if fit.refined.is_some() {
         d.remove("not_identified");
     } else {
         d.insert(
@@ -45,7 +45,7 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
             json!({
                 "fields": ["actuator.resonance_hz"],
                 "values": { "resonance_hz": best.resonance_hz },
-                "reason": "the waveform fit was not run; the phase-lag scheme assumes f0",
+                "reason": "no refined fit was made; the phase-lag scheme assumes f0",
             }),
         );
     }
@@ -54,7 +54,7 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
     d.insert(
         "dynamics".into(),
         json!({
-            "written": if fit.waveform.is_some() { "waveform_fit" } else { "phase_lag" },
+            "written": if fit.refined.is_some() { "refined_fit" } else { "phase_lag" },
             "phase_lag": {
                 "method": "paper Section 4: theta_yI measured, theta_M2I simulated with (4) for each \
                            candidate R_eddy, xi_k = tan(theta) (1 - r^2) / (2 r); R_eddy = least \
@@ -74,19 +74,13 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
                                               pl.coarse.last().map(|c| c.eddy_resistance_ohm)]},
                 "nrmse_per_experiment": fit.experiments.iter().map(|e| e.nrmse_phase_lag).collect::<Vec<_>>(),
             },
-            "waveform_fit": fit.waveform.as_ref().map(|w| json!({
-                "method": "Levenberg-Marquardt (levenberg-marquardt crate) on (ln R_eddy, ln xi, ln f0), \
-                           residual = sum over experiments of NRMSE^2 of the displacement on the \
-                           steady-state window, started from the phase-lag result",
+            "refined_fit": fit.refined.as_ref().map(|w| json!({
                 "eddy_resistance_ohm": w.params.eddy_resistance_ohm,
                 "damping_ratio": w.params.damping_ratio,
                 "resonance_hz": w.params.resonance_hz,
-                "relative_std_white_residual": w.relative_std,
                 "rms_nrmse": w.rms_nrmse,
-                "nrmse_per_experiment": w.nrmse,
-                "nrmse_per_experiment_at_start": w.nrmse_start,
-                "termination": w.termination,
-                "model_evaluations": w.evaluations,
+                "nrmse_per_experiment": fit.experiments.iter().map(|e| e.nrmse_refined).collect::<Vec<_>>(),
+                "details": w.details,
             })),
             "experiments": fit.experiments.iter().map(|e| json!({
                 "file": e.file,
@@ -120,7 +114,7 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
             }))
             .collect::<Vec<_>>()),
     );
-    params.provenance.source = if fit.waveform.is_some() {
+    params.provenance.source = if fit.refined.is_some() {
         "maglab identify (Preisach masses, R_eddy, xi, f0 identified)".into()
     } else {
         "maglab identify (Preisach masses, R_eddy, xi identified; f0 assumed)".into()

@@ -1,0 +1,22 @@
+//! Prints the blind suite for any seed: `cargo run --release -p maglab-diagnose --example
+//! blind_suite -- SEED [COUNT]`.
+#[path = "../tests/blind/mod.rs"]
+mod blind;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let seed: u64 = args
+        .first()
+        .map_or(1, |s| s.parse().expect("SEED is a number"));
+    let count: usize = args
+        .get(1)
+        .map_or(32, |s| s.parse().expect("COUNT is a number"));
+    let started = std::time::Instant::now();
+    let outcomes = blind::run_suite(seed, count, true);
+    println!("\n{}", blind::confusion_matrix(&outcomes));
+    println!(
+        "suite seed {seed}: {} cases in {:.0} s",
+        outcomes.len(),
+        started.elapsed().as_secs_f64()
+    );
+}

@@ -1,0 +1,470 @@
+//! Fitting a candidate's parameters on training experiments: Levenberg-Marquardt (the
+//! `levenberg-marquardt` crate, MINPACK's algorithm) on the displacement residual, with the
+//! sensor offset solved in closed form (the residual's mean is removed: variable projection) and
+//! the electromagnetic stage cached, so that the Jacobian columns of mechanical and sensor
+//! parameters cost one mechanical run each.
+//!
+//! Fitting uses at most [`FitSettings::max_fit_samples`] samples of each training experiment after
+//! its settling time (the whole record is still simulated up to there); scoring uses the whole
+//! record.
+
+use crate::candidates::{self, Candidate, ParamSpec, Stage};
+use crate::model::{
+    chained_temperature, run_electro, run_mech, Electro, ElectroRun, Interpolation, Mech,
+    ModelStart, Nominal,
+};
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use magctl::preisach::PreisachMeasure;
+use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// One experiment as the model sees it.
+#[derive(Debug, Clone)]
+pub struct ExperimentData<'a> {
+    /// Commanded current, A.
+    pub current_a: &'a [f64],
+    /// Measured displacement, m.
+    pub measured_m: &'a [f64],
+    /// First scored sample.
+    pub settle: usize,
+    /// How it starts.
+    pub start: ModelStart,
+    /// The currents of the experiments run before it without a reset (oldest first; empty unless
+    /// it starts where the previous one ended): the coil's temperature carries over.
+    pub heat_history: Vec<&'a [f64]>,
+}
+
+/// The model settings shared by every run.
+#[derive(Debug, Clone, Copy)]
+pub struct ModelSetup<'a> {
+    /// Nominal constants.
+    pub nominal: &'a Nominal,
+    /// The Preisach measure.
+    pub measure: &'a PreisachMeasure,
+    /// Sampling step, s.
+    pub step_s: f64,
+    /// The current between samples.
+    pub interpolation: Interpolation,
+    /// Electromagnetic substeps per sample.
+    pub substeps: usize,
+}
+
+impl ModelSetup<'_> {
+    /// Stage A of one experiment over its first `len` samples, after `previous` (the memory the
+    /// previous experiment of a chain left, for a chained start).
+    pub fn electro(
+        &self,
+        e: &Electro,
+        x: &ExperimentData<'_>,
+        len: usize,
+        previous: Option<&crate::model::Memory>,
+    ) -> ElectroRun {
+        run_electro(
+            self.nominal,
+            self.measure,
+            e,
+            &x.current_a[..len],
+            self.step_s,
+            self.interpolation,
+            &x.start,
+            previous,
+            self.substeps,
+        )
+    }
+
+    /// Stage A of the experiments `which` of `data` (their first `lens[i]` samples). When an
+    /// experiment starts where the previous one ended, the chain is simulated in order with the
+    /// same parameters, each experiment whole (its end is the next one's start); otherwise the
+    /// experiments run in parallel.
+    pub fn electro_runs(
+        &self,
+        e: &Electro,
+        data: &[ExperimentData<'_>],
+        which: &[usize],
+        lens: &[usize],
+    ) -> Vec<ElectroRun> {
+        let chained = data.iter().any(|x| x.start == ModelStart::Previous);
+        if !chained {
+            return which
+                .par_iter()
+                .zip(lens)
+                .map(|(&k, &len)| self.electro(e, &data[k], len, None))
+                .collect();
+        }
+        let last = which.iter().copied().max().unwrap_or(0);
+        let mut runs: Vec<Option<ElectroRun>> = Vec::with_capacity(last + 1);
+        let mut previous: Option<crate::model::Memory> = None;
+        for x in data.iter().take(last + 1) {
+            let run = self.electro(e, x, x.current_a.len(), previous.as_ref());
+            previous = Some((*run.end_memory).clone());
+            runs.push(Some(run));
+        }
+        which
+            .iter()
+            .map(|&k| {
+                runs[k]
+                    .take()
+                    .unwrap_or_else(|| self.electro(e, &data[k], data[k].current_a.len(), None))
+            })
+            .collect()
+    }
+
+    /// The model's displacement for experiments `which` of `data` over their first `lens[i]`
+    /// samples (no offset).
+    pub fn predict(
+        &self,
+        e: &Electro,
+        m: &Mech,
+        data: &[ExperimentData<'_>],
+        which: &[usize],
+        lens: &[usize],
+    ) -> Vec<Vec<f64>> {
+        let runs = self.electro_runs(e, data, which, lens);
+        which
+            .par_iter()
+            .zip(runs.par_iter())
+            .zip(lens.par_iter())
+            .map(|((&k, run), &len)| {
+                let x = &data[k];
+                let theta0 = chained_temperature(m, &x.heat_history, self.step_s);
+                run_mech(self.nominal, m, run, len, self.step_s, theta0)
+            })
+            .collect()
+    }
+
+    /// The same over whole records.
+    pub fn predict_all(
+        &self,
+        e: &Electro,
+        m: &Mech,
+        data: &[ExperimentData<'_>],
+        which: &[usize],
+    ) -> Vec<Vec<f64>> {
+        let lens: Vec<usize> = which.iter().map(|&k| data[k].current_a.len()).collect();
+        self.predict(e, m, data, which, &lens)
+    }
+}
+
+/// Fit settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitSettings {
+    /// Samples per experiment used in fitting, after its settling time.
+    pub max_fit_samples: usize,
+    /// Levenberg-Marquardt patience (evaluations ≈ patience × (parameters + 1)).
+    pub patience: usize,
+    /// How far `R_eddy`, `ξ`, `f0` may move from the nominal values (factors; see
+    /// [`candidates::REFIT_RANGE`]).
+    pub refit_range: [f64; 3],
+}
+
+impl Default for FitSettings {
+    fn default() -> Self {
+        FitSettings {
+            max_fit_samples: 3000,
+            patience: 12,
+            refit_range: candidates::REFIT_RANGE,
+        }
+    }
+}
+
+/// A fitted candidate.
+#[derive(Debug, Clone)]
+pub struct Fitted {
+    /// The candidate.
+    pub candidate: Candidate,
+    /// Parameter specs.
+    pub specs: Vec<ParamSpec>,
+    /// Values, physical units.
+    pub values: Vec<f64>,
+    /// Training RMS residual (offset removed), m.
+    pub training_rms_m: f64,
+    /// Model evaluations spent.
+    pub evaluations: u64,
+}
+
+impl Fitted {
+    /// Its model parameters.
+    pub fn model(&self) -> (Electro, Mech) {
+        candidates::model_parameters(&self.candidate, &self.values)
+    }
+
+    /// The effect parameters pinned at a physical limit of their range
+    /// ([`ParamSpec::pinned`]).
+    pub fn pinned(&self) -> Vec<&'static str> {
+        self.specs
+            .iter()
+            .zip(&self.values)
+            .skip(4)
+            .filter(|(s, &v)| s.pinned(s.coordinate(v)))
+            .map(|(s, _)| s.name)
+            .collect()
+    }
+
+    /// The same fit with effect `drop` switched off (every other value unchanged).
+    pub fn without_effect(&self, drop: usize) -> Fitted {
+        let mut effects = Vec::new();
+        let mut specs = self.specs[..4].to_vec();
+        let mut values = self.values[..4].to_vec();
+        let mut k = 4;
+        for (i, &e) in self.candidate.effects.iter().enumerate() {
+            let n = candidates::effect_parameter_count(e);
+            if i != drop {
+                effects.push(e);
+                specs.extend_from_slice(&self.specs[k..k + n]);
+                values.extend_from_slice(&self.values[k..k + n]);
+            }
+            k += n;
+        }
+        Fitted {
+            candidate: Candidate { effects },
+            specs,
+            values,
+            training_rms_m: self.training_rms_m,
+            evaluations: 0,
+        }
+    }
+
+    /// The same fit with only the first `keep` effects (the others switched off, every other
+    /// value unchanged): what the fit owes to the effects dropped.
+    pub fn knocked_out(&self, keep: usize) -> Fitted {
+        let candidate = Candidate {
+            effects: self.candidate.effects[..keep.min(self.candidate.effects.len())].to_vec(),
+        };
+        let n = 4 + candidate
+            .effects
+            .iter()
+            .map(|&e| candidates::effect_parameter_count(e))
+            .sum::<usize>();
+        Fitted {
+            specs: self.specs[..n].to_vec(),
+            values: self.values[..n].to_vec(),
+            candidate,
+            training_rms_m: self.training_rms_m,
+            evaluations: 0,
+        }
+    }
+}
+
+type Cache = Mutex<Vec<(Electro, Arc<Vec<ElectroRun>>)>>;
+
+/// The least-squares problem of one candidate on the training experiments.
+struct Problem<'a> {
+    setup: ModelSetup<'a>,
+    data: &'a [ExperimentData<'a>],
+    training: &'a [usize],
+    lengths: Vec<usize>,
+    candidate: &'a Candidate,
+    specs: Vec<ParamSpec>,
+    cache: Arc<Cache>,
+    evaluations: Arc<AtomicU64>,
+    z: DVector<f64>,
+    residuals: Option<DVector<f64>>,
+}
+
+impl Problem<'_> {
+    fn values(&self, z: &DVector<f64>) -> Vec<f64> {
+        self.specs
+            .iter()
+            .zip(z.iter())
+            .map(|(s, &z)| s.value(z))
+            .collect()
+    }
+
+    fn electro_runs(&self, e: &Electro) -> Arc<Vec<ElectroRun>> {
+        if let Some((_, runs)) = self
+            .cache
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .iter()
+            .find(|(k, _)| k == e)
+        {
+            return runs.clone();
+        }
+        let runs = Arc::new(
+            self.setup
+                .electro_runs(e, self.data, self.training, &self.lengths),
+        );
+        let mut cache = self.cache.lock().unwrap_or_else(|p| p.into_inner());
+        if cache.len() >= 3 {
+            cache.remove(0);
+        }
+        cache.push((*e, runs.clone()));
+        runs
+    }
+
+    fn eval(&self, z: &DVector<f64>) -> Option<DVector<f64>> {
+        self.evaluations.fetch_add(1, Ordering::Relaxed);
+        let (e, m) = candidates::model_parameters(self.candidate, &self.values(z));
+        let runs = self.electro_runs(&e);
+        let parts: Vec<Vec<f64>> = self
+            .training
+            .par_iter()
+            .zip(runs.par_iter())
+            .zip(self.lengths.par_iter())
+            .map(|((&k, run), &len)| {
+                let x = &self.data[k];
+                let theta0 = chained_temperature(&m, &x.heat_history, self.setup.step_s);
+                let y = run_mech(self.setup.nominal, &m, run, len, self.setup.step_s, theta0);
+                (x.settle..len).map(|k| y[k] - x.measured_m[k]).collect()
+            })
+            .collect();
+        let mut all: Vec<f64> = parts.into_iter().flatten().collect();
+        if all.is_empty() {
+            return None;
+        }
+        if !all.iter().all(|v| v.is_finite()) {
+            // A trial point where the model is not finite: a residual far worse than any real
+            // one, so Levenberg-Marquardt rejects the step and shrinks its trust region.
+            return Some(DVector::from_element(all.len(), UNSTABLE_RESIDUAL_M));
+        }
+        let mean = all.iter().sum::<f64>() / all.len() as f64;
+        for v in all.iter_mut() {
+            *v -= mean;
+        }
+        Some(DVector::from_vec(all))
+    }
+}
+
+/// Residual given to a trial point whose simulation is not finite, m.
+const UNSTABLE_RESIDUAL_M: f64 = 1.0;
+
+/// Forward-difference step in the unbounded coordinate.
+const JACOBIAN_STEP: f64 = 1e-3;
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, z: &DVector<f64>) {
+        self.z = z.clone();
+        self.residuals = self.eval(z);
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.z.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        self.residuals.clone()
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let base = self.residuals.as_ref()?;
+        let n = self.z.len();
+        let mut jac = DMatrix::zeros(base.len(), n);
+        // Mechanical columns first, while the base electromagnetic run is cached.
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by_key(|&j| self.specs[j].stage == Stage::Electro);
+        for j in order {
+            let mut z = self.z.clone();
+            z[j] += JACOBIAN_STEP;
+            let r = self.eval(&z)?;
+            if r.len() != base.len() {
+                return None;
+            }
+            jac.set_column(j, &((r - base) / JACOBIAN_STEP));
+        }
+        Some(jac)
+    }
+}
+
+/// Fits `candidate` on the experiments `training` of `data` from the best of `starts`
+/// (physical values, [`candidates::parameters`] order).
+pub fn fit(
+    setup: ModelSetup<'_>,
+    data: &[ExperimentData<'_>],
+    training: &[usize],
+    candidate: &Candidate,
+    starts: &[Vec<f64>],
+    settings: &FitSettings,
+) -> Fitted {
+    let specs = candidates::parameters(candidate, setup.nominal, &settings.refit_range);
+    let lengths: Vec<usize> = training
+        .iter()
+        .map(|&k| (data[k].settle + settings.max_fit_samples).min(data[k].current_a.len()))
+        .collect();
+    let evaluations = Arc::new(AtomicU64::new(0));
+    let cache: Arc<Cache> = Arc::new(Mutex::new(Vec::new()));
+    let make = |z: DVector<f64>| Problem {
+        setup,
+        data,
+        training,
+        lengths: lengths.clone(),
+        candidate,
+        specs: specs.clone(),
+        cache: cache.clone(),
+        evaluations: evaluations.clone(),
+        z,
+        residuals: None,
+    };
+    let to_z = |v: &[f64]| {
+        DVector::from_iterator(
+            specs.len(),
+            specs.iter().zip(v).map(|(s, &v)| s.coordinate(v)),
+        )
+    };
+    // Evaluate the starts; refine the best (and the second when within 10 % of it: a second
+    // basin as good).
+    let mut scored: Vec<(f64, DVector<f64>)> = starts
+        .iter()
+        .map(|v| {
+            let z = to_z(v);
+            let p = make(z.clone());
+            let cost = p.eval(&z).map_or(f64::INFINITY, |r| r.norm_squared());
+            (cost, z)
+        })
+        .collect();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let refine = if scored.len() > 1 && scored[1].0 <= 1.1 * scored[0].0 {
+        2
+    } else {
+        1
+    };
+    let mut best = scored[0].clone();
+    for (_, z0) in scored.iter().take(refine) {
+        let mut p = make(z0.clone());
+        p.set_params(z0);
+        let (p, report) = LevenbergMarquardt::new()
+            .with_patience(settings.patience)
+            .with_ftol(1e-8)
+            .with_xtol(1e-6)
+            .with_stepbound(1.0)
+            .minimize(p);
+        if std::env::var_os("MAGLAB_DEBUG_FIT").is_some() {
+            eprintln!(
+                "fit {}: {:?} after {} evaluations, cost {:.3e} -> {:.3e}",
+                candidate.name(),
+                report.termination,
+                report.number_of_evaluations,
+                scored[0].0,
+                p.residuals().map_or(f64::NAN, |r| r.norm_squared())
+            );
+        }
+        if let Some(r) = p.residuals() {
+            let c = r.norm_squared();
+            if c < best.0 {
+                best = (c, p.z.clone());
+            }
+        }
+    }
+    let n_res: usize = training
+        .iter()
+        .zip(&lengths)
+        .map(|(&k, &len)| len.saturating_sub(data[k].settle))
+        .sum();
+    let values: Vec<f64> = specs
+        .iter()
+        .zip(best.1.iter())
+        .map(|(s, &z)| s.value(z))
+        .collect();
+    Fitted {
+        candidate: candidate.clone(),
+        specs,
+        values,
+        training_rms_m: (best.0 / n_res.max(1) as f64).sqrt(),
+        evaluations: evaluations.load(Ordering::Relaxed),
+    }
+}

@@ -1,0 +1,258 @@
+//! `R_eddy`, `ξ`, `f0` from dynamic experiments with the recording's nuisances estimated: the fit
+//! `maglab identify` writes into the parameter file.
+//!
+//! It is the diagnosis' refitted nominal model (the same model, the same nuisance estimate, the
+//! same Levenberg-Marquardt fit — [`crate::diagnosis`] steps 2 and 6) with three differences:
+//! every dynamic experiment is fitted (nothing is held out), the constants may move far from
+//! their starting values ([`IDENTIFICATION_RANGE`]: identification is where they are found, not
+//! checked), and the start values come from the caller (the paper's phase-lag scheme).
+//! Identifying with the model the diagnosis uses means an identified file is exactly what the
+//! diagnosis' refit would give on the same data: an identification error is never taken for an
+//! effect.
+
+use crate::candidates::Candidate;
+use crate::diagnosis::{
+    describe, estimate_nuisances, experiment_data, offset_of, pooled_rms, systematic,
+    NuisanceEstimate, PlanFitter, QUASI_STATIC_BELOW_HZ,
+};
+use crate::fit::{FitSettings, ModelSetup};
+use crate::model::{Electro, Interpolation, Mech, Nominal};
+use crate::signal;
+use magctl::preisach::PreisachMeasure;
+use maglab_identify::data::Measurement;
+use maglab_identify::dataset_info::DatasetInfo;
+use serde::Serialize;
+
+/// How far the identification may move `R_eddy`, `ξ`, `f0` from its start: factors.
+pub const IDENTIFICATION_RANGE: [f64; 3] = [10.0, 5.0, 2.0];
+
+/// The identified constants and what was estimated with them.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct DynamicIdentification {
+    /// `R_eddy`, Ω.
+    pub eddy_resistance_ohm: f64,
+    /// `ξ`.
+    pub damping_ratio: f64,
+    /// `f0`, Hz.
+    pub resonance_hz: f64,
+    /// `hold` or `linear`.
+    pub current_between_samples: String,
+    /// Channel skew, samples.
+    pub channel_skew_samples: f64,
+    /// Sensor offset, m.
+    pub sensor_offset_m: f64,
+    /// Start state of the experiments not documented in `dataset.json`.
+    pub start_state: String,
+    /// Experiments whose start `dataset.json` documents.
+    pub documented_starts: usize,
+    /// RMS residual over every experiment's scored samples, m.
+    pub rms_m: f64,
+    /// White-noise level of the residual, m.
+    pub noise_m: f64,
+    /// Systematic part of the residual, m.
+    pub systematic_m: f64,
+    /// Per experiment: file name and RMS residual / displacement range.
+    pub nrmse: Vec<(String, f64)>,
+    /// Per experiment: file name and the model's displacement (offset included), m.
+    #[serde(skip)]
+    pub predictions: Vec<(String, Vec<f64>)>,
+    /// Model evaluations.
+    pub evaluations: u64,
+}
+
+/// Settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IdentificationOptions {
+    /// Electromagnetic substeps per sample (Richardson-extrapolated with twice as many).
+    pub substeps: usize,
+    /// Fit settings (the refit range is [`IDENTIFICATION_RANGE`]).
+    pub fit: FitSettings,
+}
+
+impl Default for IdentificationOptions {
+    fn default() -> Self {
+        IdentificationOptions {
+            substeps: 1,
+            fit: FitSettings {
+                refit_range: IDENTIFICATION_RANGE,
+                patience: 20,
+                ..FitSettings::default()
+            },
+        }
+    }
+}
+
+/// Identifies `R_eddy`, `ξ`, `f0` from the dynamic experiments `measurements`, with the Preisach
+/// masses and constants of `params` and the dynamic constants starting at `start`
+/// (`[R_eddy, ξ, f0]`); `documented` is the dataset's `dataset.json` when it has one.
+pub fn identify_dynamics(
+    params: &actuator_params::ActuatorParams,
+    measurements: &[Measurement],
+    documented: Option<&DatasetInfo>,
+    start: [f64; 3],
+    options: &IdentificationOptions,
+) -> Result<DynamicIdentification, String> {
+    params
+        .validate("base parameters")
+        .map_err(|e| e.to_string())?;
+    if measurements.is_empty() {
+        return Err("no dynamic experiments to identify R_eddy, xi, f0 from".into());
+    }
+    if !start.iter().all(|v| v.is_finite() && *v > 0.0) {
+        return Err(format!("start values must be positive, got {start:?}"));
+    }
+    let rate_hz = 1.0 / measurements[0].step_s;
+    if let Some(m) = measurements
+        .iter()
+        .find(|m| (1.0 / m.step_s - rate_hz).abs() > 1e-3 * rate_hz)
+    {
+        return Err(format!(
+            "{}: sampled at {:.3} Hz, the others at {rate_hz:.3} Hz",
+            m.path.display(),
+            1.0 / m.step_s
+        ));
+    }
+    let core = magctl::params::ActuatorParameters::from_file(params, "base parameters")
+        .map_err(|e| e.to_string())?;
+    let measure = PreisachMeasure::new(
+        &core.preisach.weights_a_per_m,
+        core.preisach.h_min_a_per_m,
+        core.preisach.h_max_a_per_m,
+    );
+    let mut nominal = Nominal::from_params(params);
+    nominal.eddy_resistance_ohm = start[0];
+    nominal.damping_ratio = start[1];
+    nominal.resonance_hz = start[2];
+    nominal.operating_field_a_per_m = nominal.c0_per_m
+        * measurements
+            .iter()
+            .flat_map(|m| m.current_a.iter())
+            .fold(0.0f64, |a, &i| a.max(i.abs()));
+    let infos = describe(measurements, rate_hz);
+    let dynamic: Vec<usize> = (0..measurements.len())
+        .filter(|&k| infos[k].fundamental_hz >= QUASI_STATIC_BELOW_HZ)
+        .collect();
+    if dynamic.is_empty() {
+        return Err(format!(
+            "no experiment has a fundamental >= {QUASI_STATIC_BELOW_HZ} Hz: R_eddy, xi, f0 need \
+             dynamic experiments"
+        ));
+    }
+    let file_name = |m: &Measurement| {
+        m.path
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    let documented_starts: Vec<_> = measurements
+        .iter()
+        .map(|m| documented.and_then(|d| d.start_of(&file_name(m))))
+        .collect();
+    let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
+    let probe_lens: Vec<usize> = (0..measurements.len())
+        .map(|k| (settles[k] + options.fit.max_fit_samples).min(measurements[k].len()))
+        .collect();
+    let linear = ModelSetup {
+        nominal: &nominal,
+        measure: &measure,
+        step_s: 1.0 / rate_hz,
+        interpolation: Interpolation::Linear,
+        substeps: options.substeps,
+    };
+    let electro = Electro::nominal(start[0]);
+    let mech = Mech::nominal(start[1], start[2]);
+    let NuisanceEstimate {
+        start_sets,
+        plan,
+        interpolation,
+        skew,
+        ..
+    } = estimate_nuisances(
+        &linear,
+        measurements,
+        &settles,
+        &dynamic,
+        &probe_lens,
+        &documented_starts,
+        &electro,
+        &mech,
+    );
+    let setup = ModelSetup {
+        interpolation,
+        ..linear
+    };
+    let plan_data: Vec<_> = start_sets
+        .iter()
+        .map(|(_, st)| experiment_data(measurements, &settles, st))
+        .collect();
+    let fitter = PlanFitter {
+        setup,
+        plan_data: &plan_data,
+        training: &dynamic,
+        first_plan: plan,
+        settings: &options.fit,
+    };
+    let fitted = fitter.fit(
+        &Candidate::nominal(),
+        &[vec![start[0], start[1], start[2], skew]],
+    );
+    let (e, m) = fitted.fitted.model();
+    let data = &plan_data[fitted.plan];
+    let preds = setup.predict_all(&e, &m, data, &dynamic);
+    let items: Vec<(&[f64], &[f64], usize)> = dynamic
+        .iter()
+        .zip(&preds)
+        .map(|(&k, p)| (p.as_slice(), data[k].measured_m, data[k].settle))
+        .collect();
+    let offset = offset_of(&items);
+    let rms = pooled_rms(&items, offset);
+    let mut sigmas: Vec<f64> = items
+        .iter()
+        .map(|(p, y, s)| {
+            let r: Vec<f64> = (*s..p.len()).map(|i| y[i] - p[i] - offset).collect();
+            signal::white_noise_sigma(&r)
+        })
+        .collect();
+    sigmas.sort_by(f64::total_cmp);
+    let noise = sigmas[sigmas.len() / 2];
+    let nrmse = dynamic
+        .iter()
+        .zip(&items)
+        .map(|(&k, item)| {
+            let y = &item.1[item.2..];
+            let range = y.iter().cloned().fold(f64::MIN, f64::max)
+                - y.iter().cloned().fold(f64::MAX, f64::min);
+            (
+                file_name(&measurements[k]),
+                pooled_rms(std::slice::from_ref(item), offset) / range.max(1e-300),
+            )
+        })
+        .collect();
+    let predictions = dynamic
+        .iter()
+        .zip(&preds)
+        .map(|(&k, p)| {
+            (
+                file_name(&measurements[k]),
+                p.iter().map(|v| v + offset).collect(),
+            )
+        })
+        .collect();
+    let v = &fitted.fitted.values;
+    Ok(DynamicIdentification {
+        eddy_resistance_ohm: v[0],
+        damping_ratio: v[1],
+        resonance_hz: v[2],
+        current_between_samples: interpolation.name().into(),
+        channel_skew_samples: v[3],
+        sensor_offset_m: offset,
+        start_state: start_sets[fitted.plan].0.name().into(),
+        documented_starts: documented_starts.iter().filter(|s| s.is_some()).count(),
+        rms_m: rms,
+        noise_m: noise,
+        systematic_m: systematic(rms, noise),
+        nrmse,
+        predictions,
+        evaluations: fitted.fitted.evaluations,
+    })
+}

@@ -1,0 +1,162 @@
+//! The blind suite's runner, shared by the test and the example that prints a suite for any
+//! seed: draw the cases on the bench plant (`maglab_plant::suite`), diagnose each through the
+//! public API exactly as `maglab diagnose` does, and tabulate.
+#![allow(dead_code)]
+
+use maglab_diagnose::diagnosis::{diagnose, DiagnoseOptions, Diagnosis};
+use maglab_identify::data::Measurement;
+use maglab_identify::dataset_info::{DatasetInfo, FileInfo};
+use maglab_plant::suite::{self, Case, Kind};
+
+/// One diagnosed case.
+pub struct Outcome {
+    pub case: Case,
+    pub named: Vec<String>,
+    pub correct: bool,
+    pub seconds: f64,
+    pub diagnosis: Diagnosis,
+}
+
+/// Diagnoses one case.
+pub fn run_case(params: &actuator_params::ActuatorParams, case: Case) -> Outcome {
+    let recordings = case.record(params).expect("the plant runs");
+    let rate = case.settings.rate_hz;
+    let measurements: Vec<Measurement> = recordings
+        .iter()
+        .map(|r| Measurement {
+            path: format!("case/{}.csv", r.name).into(),
+            t_s: r.t_s.clone(),
+            current_a: r.current_a.clone(),
+            displacement_m: r.displacement_m.clone(),
+            step_s: 1.0 / rate,
+        })
+        .collect();
+    let documented = case.documented.then(|| {
+        let mut info = DatasetInfo::default();
+        for r in &recordings {
+            info.files.insert(
+                format!("{}.csv", r.name),
+                FileInfo {
+                    start_state: Some(r.start),
+                    excitation: Some(r.description.clone()),
+                },
+            );
+        }
+        info
+    });
+    let started = std::time::Instant::now();
+    let run = diagnose(
+        params,
+        &measurements,
+        documented.as_ref(),
+        &DiagnoseOptions::default(),
+        &|_| {},
+    )
+    .expect("the diagnosis runs");
+    let seconds = started.elapsed().as_secs_f64();
+    let d = run.diagnosis;
+    let mut named: Vec<String> = std::iter::once(d.verdict.clone())
+        .chain(d.additional_effects.iter().cloned())
+        .collect();
+    named.sort();
+    let expected: Vec<String> = case.kind.expected().iter().map(|s| s.to_string()).collect();
+    Outcome {
+        correct: named == expected,
+        named,
+        seconds,
+        diagnosis: d,
+        case,
+    }
+}
+
+/// The suite of `count` cases from `seed`.
+pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
+    let params = actuator_params::paper_defaults();
+    suite::kinds(seed, count)
+        .into_iter()
+        .enumerate()
+        .map(|(i, kind)| {
+            let case = suite::draw(
+                &params,
+                seed.wrapping_mul(1000).wrapping_add(i as u64),
+                kind,
+            )
+            .expect("the case is drawn");
+            let o = run_case(&params, case);
+            if verbose {
+                println!(
+                    "{} {:2} {} -> {} ({:.1} s){}",
+                    if o.correct { "ok  " } else { "MISS" },
+                    i,
+                    o.case.describe(),
+                    o.named.join("+"),
+                    o.seconds,
+                    if o.correct {
+                        String::new()
+                    } else {
+                        format!("\n       {}", o.diagnosis.verdict_reason)
+                    }
+                );
+            }
+            o
+        })
+        .collect()
+}
+
+/// The confusion matrix as Markdown: rows are what the case contains (pairs pooled), columns
+/// what the diagnosis named.
+pub fn confusion_matrix(outcomes: &[Outcome]) -> String {
+    let row_of = |k: &Kind| match k {
+        Kind::Single(e) => e.to_string(),
+        Kind::Pair(..) => "pair of library effects".into(),
+        Kind::OutOfLibrary(e) => format!("{e} (not in library)"),
+        Kind::NoiseOnly => "noise only".into(),
+    };
+    let col_of = |o: &Outcome| match &o.case.kind {
+        Kind::Pair(..) if o.correct => "both of the pair".to_string(),
+        _ => o.named.join("+"),
+    };
+    let mut rows: Vec<String> = Vec::new();
+    let mut cols: Vec<String> = Vec::new();
+    for o in outcomes {
+        let r = row_of(&o.case.kind);
+        if !rows.contains(&r) {
+            rows.push(r);
+        }
+        let c = col_of(o);
+        if !cols.contains(&c) {
+            cols.push(c);
+        }
+    }
+    rows.sort();
+    cols.sort();
+    let mut s = format!(
+        "| case \\ named | {} |\n|---|{}\n",
+        cols.join(" | "),
+        "---|".repeat(cols.len())
+    );
+    for r in &rows {
+        let cells: Vec<String> = cols
+            .iter()
+            .map(|c| {
+                let n = outcomes
+                    .iter()
+                    .filter(|o| &row_of(&o.case.kind) == r && &col_of(o) == c)
+                    .count();
+                if n == 0 {
+                    String::new()
+                } else {
+                    n.to_string()
+                }
+            })
+            .collect();
+        s.push_str(&format!("| {r} | {} |\n", cells.join(" | ")));
+    }
+    let correct = outcomes.iter().filter(|o| o.correct).count();
+    s.push_str(&format!(
+        "\n{correct}/{} correct ({:.0} %)\n",
+        outcomes.len(),
+        100.0 * correct as f64 / outcomes.len().max(1) as f64
+    ));
+    s
+}

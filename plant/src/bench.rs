@@ -1,0 +1,263 @@
+//! Experiments on the bench plant: the command sequences, how the bench records them (the
+//! nuisances a real rig has), and the dataset folder it writes.
+//!
+//! **What a recording is.** Sample `k` holds the time `t_k = k / rate`, the command `I_k` the
+//! controller sent (held over `[t_k, t_{k+1}]` by a DAC, or linear to `I_{k+1}` when the current
+//! source interpolates: [`BenchSettings::current_between_samples`]) and the displacement the
+//! sensor read at `t_k + skew / rate` ([`BenchSettings::channel_skew_samples`]: the two channels
+//! of a logger are rarely sampled at the same instant) plus the sensor's offset, white noise and
+//! quantization. None of these bench facts is written into the dataset: only what an
+//! experimenter documents, the start state of each experiment (`dataset.json`,
+//! `maglab_identify::dataset_info`). The effects and the nuisances go to a separate manifest.
+//!
+//! Experiments whose start state is `previous` run after the one before them on the same plant;
+//! a dataset without them runs its experiments in parallel (rayon).
+
+use crate::actuator::{CurrentBetweenSamples, Plant, StartState};
+use crate::effects::Effect;
+use actuator_params::ActuatorParams;
+use maglab_identify::dataset_info::{DatasetInfo, FileInfo};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use rayon::prelude::*;
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+/// How the bench records (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BenchSettings {
+    /// Sampling and command rate, Hz.
+    pub rate_hz: f64,
+    /// What the current source does between command samples.
+    pub current_between_samples: CurrentBetweenSamples,
+    /// The displacement of sample `k` is read at `t_k + skew / rate`; |skew| < 1.
+    pub channel_skew_samples: f64,
+    /// Sensor offset, m.
+    pub sensor_offset_m: f64,
+    /// White sensor noise, m (standard deviation).
+    pub noise_m: f64,
+    /// Quantization step of the displacement, m (0: none).
+    pub quantization_m: f64,
+    /// Seed of the noise (experiment `k` uses `seed + k`).
+    pub seed: u64,
+}
+
+impl Default for BenchSettings {
+    fn default() -> Self {
+        BenchSettings {
+            rate_hz: 10_000.0,
+            current_between_samples: CurrentBetweenSamples::Hold,
+            channel_skew_samples: 0.0,
+            sensor_offset_m: 0.0,
+            noise_m: 0.15e-6,
+            quantization_m: 2e-9,
+            seed: 1,
+        }
+    }
+}
+
+impl BenchSettings {
+    /// Checks the settings, naming the field.
+    pub fn check(&self) -> Result<(), String> {
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
+            return Err(format!("bench `rate_hz` must be > 0, got {}", self.rate_hz));
+        }
+        if !(self.channel_skew_samples.is_finite() && self.channel_skew_samples.abs() < 1.0) {
+            return Err(format!(
+                "bench `channel_skew_samples` must be in (-1, 1), got {}",
+                self.channel_skew_samples
+            ));
+        }
+        for (name, v) in [
+            ("noise_m", self.noise_m),
+            ("quantization_m", self.quantization_m),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("bench `{name}` must be >= 0, got {v}"));
+            }
+        }
+        if !self.sensor_offset_m.is_finite() {
+            return Err("bench `sensor_offset_m` must be finite".into());
+        }
+        Ok(())
+    }
+}
+
+/// One experiment: a command sequence and how it starts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Experiment {
+    /// File stem.
+    pub name: String,
+    /// Start state.
+    pub start: StartState,
+    /// Command at every sample, A.
+    pub current_a: Vec<f64>,
+    /// What the command is (documented in `dataset.json`).
+    pub description: String,
+}
+
+/// A recorded experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    /// File stem.
+    pub name: String,
+    /// Start state.
+    pub start: StartState,
+    /// What the command is.
+    pub description: String,
+    /// `t_k`, s.
+    pub t_s: Vec<f64>,
+    /// Command, A.
+    pub current_a: Vec<f64>,
+    /// Recorded displacement, m.
+    pub displacement_m: Vec<f64>,
+    /// The same without noise and quantization (for tests and calibration), m.
+    pub clean_displacement_m: Vec<f64>,
+}
+
+/// `bias + amplitude sin(2π f t_k)` for `duration_s`.
+pub fn sine(
+    bias_a: f64,
+    amplitude_a: f64,
+    freq_hz: f64,
+    duration_s: f64,
+    rate_hz: f64,
+) -> Vec<f64> {
+    let n = (duration_s * rate_hz).round() as usize;
+    (0..n)
+        .map(|k| bias_a + amplitude_a * (2.0 * PI * freq_hz * k as f64 / rate_hz).sin())
+        .collect()
+}
+
+/// A sine experiment with a descriptive name.
+pub fn sine_experiment(
+    index: usize,
+    start: StartState,
+    bias_a: f64,
+    amplitude_a: f64,
+    freq_hz: f64,
+    duration_s: f64,
+    rate_hz: f64,
+) -> Experiment {
+    Experiment {
+        name: format!("{index:02}_sine_{freq_hz:07.1}hz_amp{amplitude_a:.3}a_bias{bias_a:.3}a"),
+        start,
+        current_a: sine(bias_a, amplitude_a, freq_hz, duration_s, rate_hz),
+        description: format!("sine {freq_hz} Hz, {bias_a} ± {amplitude_a} A"),
+    }
+}
+
+/// Runs one experiment on `plant` (started as the experiment says).
+pub fn record(
+    plant: &mut Plant,
+    experiment: &Experiment,
+    settings: &BenchSettings,
+    seed: u64,
+) -> Result<Recording, String> {
+    settings.check()?;
+    let cmd = &experiment.current_a;
+    if cmd.len() < 3 {
+        return Err(format!("{}: needs at least 3 samples", experiment.name));
+    }
+    if let Some((k, v)) = cmd.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(format!("{}: command sample {k} is {v}", experiment.name));
+    }
+    plant.start(experiment.start, cmd[0]);
+    let n = cmd.len();
+    for k in 0..n {
+        let end = match settings.current_between_samples {
+            CurrentBetweenSamples::Hold => cmd[k],
+            CurrentBetweenSamples::Linear => cmd[(k + 1).min(n - 1)],
+        };
+        plant.advance(cmd[k], end);
+    }
+    let h = 1.0 / settings.rate_hz;
+    let t_s: Vec<f64> = (0..n).map(|k| k as f64 * h).collect();
+    let clean: Vec<f64> = t_s
+        .iter()
+        .map(|&t| plant.sensor_at(t + settings.channel_skew_samples * h) + settings.sensor_offset_m)
+        .collect();
+    let mut y = clean.clone();
+    if settings.noise_m > 0.0 {
+        let normal = Normal::new(0.0, settings.noise_m).map_err(|e| format!("noise: {e}"))?;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        for v in y.iter_mut() {
+            *v += normal.sample(&mut rng);
+        }
+    }
+    if settings.quantization_m > 0.0 {
+        for v in y.iter_mut() {
+            *v = (*v / settings.quantization_m).round() * settings.quantization_m;
+        }
+    }
+    Ok(Recording {
+        name: experiment.name.clone(),
+        start: experiment.start,
+        description: experiment.description.clone(),
+        t_s,
+        current_a: cmd.clone(),
+        displacement_m: y,
+        clean_displacement_m: clean,
+    })
+}
+
+/// Records every experiment on a plant of `params` with `effects` (see the module docs for the
+/// order).
+pub fn record_all(
+    params: &ActuatorParams,
+    effects: &[Effect],
+    experiments: &[Experiment],
+    settings: &BenchSettings,
+) -> Result<Vec<Recording>, String> {
+    settings.check()?;
+    let plant = Plant::new(params, effects, settings.rate_hz)?;
+    let chained = experiments.iter().any(|e| e.start == StartState::Previous);
+    if chained {
+        let mut plant = plant;
+        experiments
+            .iter()
+            .enumerate()
+            .map(|(k, e)| {
+                record(
+                    &mut plant,
+                    e,
+                    settings,
+                    settings.seed.wrapping_add(k as u64),
+                )
+            })
+            .collect()
+    } else {
+        experiments
+            .par_iter()
+            .enumerate()
+            .map(|(k, e)| {
+                let mut p = plant.clone();
+                record(&mut p, e, settings, settings.seed.wrapping_add(k as u64))
+            })
+            .collect()
+    }
+}
+
+/// Writes `dir/<name>.csv` for every recording and `dir/dataset.json` with the start states
+/// and excitations; returns the CSV paths.
+pub fn write_dataset(dir: &Path, recordings: &[Recording]) -> Result<Vec<PathBuf>, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let mut info = DatasetInfo::default();
+    let mut paths = Vec::new();
+    for r in recordings {
+        let file = format!("{}.csv", r.name);
+        let path = dir.join(&file);
+        maglab_identify::data::write_measurement(&path, &r.t_s, &r.current_a, &r.displacement_m)
+            .map_err(|e| e.to_string())?;
+        info.files.insert(
+            file,
+            FileInfo {
+                start_state: Some(r.start),
+                excitation: Some(r.description.clone()),
+            },
+        );
+        paths.push(path);
+    }
+    info.write(dir).map_err(|e| e.to_string())?;
+    Ok(paths)
+}

@@ -1,0 +1,19 @@
+//! `maglab-plant`: the bench plant — an independent simulator of a magnetostrictive actuator on
+//! a test bench, with the unmodelled effects and the recording nuisances a real rig has.
+//!
+//! It is the plant behind `maglab rig` (datasets), `maglab track` (the controller against a
+//! plant) and the diagnosis' blind test suite. It shares no equations with the model under test
+//! beyond the paper's: its own f64 Preisach operator ([`preisach`]), the eddy-current equation in
+//! differential form with its own RK4 integrator ([`actuator`]), each effect in a physical form
+//! the diagnosis' candidates do not have ([`effects`]), and a recorder with channel skew, sensor
+//! offset, noise, quantization and documented start states ([`bench`]).
+
+pub mod actuator;
+pub mod bench;
+pub mod effects;
+pub mod preisach;
+pub mod suite;
+
+pub use actuator::{CurrentBetweenSamples, Plant, PlantConstants, StartState};
+pub use bench::{BenchSettings, Experiment, Recording};
+pub use effects::{Effect, EffectSpec, EFFECTS};

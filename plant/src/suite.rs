@@ -1,0 +1,572 @@
+//! Blind test cases for the diagnosis: datasets from the bench plant with effects drawn at
+//! random (shape parameters, nuisances, start state) and magnitudes calibrated to a target gap.
+//!
+//! **Gap.** An effect's gap is the RMS difference between the plant's noise-free reading with and
+//! without the effect (same nuisances, same start), over the scored part of the
+//! highest-frequency experiments (after the first 10 %), its mean removed (a constant is a sensor
+//! offset, a nuisance) and the effect's reading shifted by the one time shift within
+//! ±1.5 samples that fits the lowest- and the highest-frequency experiments best together (a
+//! channel skew and a held-vs-linear current are nuisances a diagnosis estimates; a pure delay
+//! of that size cannot be told from them), as a fraction of their peak-to-peak displacement.
+//! [`calibrate`] finds the effect's magnitude parameter
+//! ([`crate::effects::EffectSpec::magnitude`]) that gives a target gap by bisection on a log
+//! scale (the gap grows with the magnitude).
+//!
+//! **A case** ([`draw`]): a sine sweep (6 frequencies from 20 to 400 Hz, ±5 % jitter, two
+//! amplitudes, one bias, 0.5 s each at 10 kHz); the current held or linear between samples, a
+//! channel skew within ±0.8 samples, a sensor offset, white noise 0.05-0.3 µm, 2 nm quantization;
+//! one start state for every experiment, documented in `dataset.json` or not (half the cases);
+//! then the effects: one library effect (target gap 5-30 %), a pair of library effects (5-20 %
+//! each), one out-of-library effect (5-30 %), or none. Everything is drawn from the case's seed.
+
+use crate::actuator::{CurrentBetweenSamples, StartState};
+use crate::bench::{record, record_all, sine_experiment, BenchSettings, Experiment, Recording};
+use crate::effects::{Effect, EFFECTS};
+use actuator_params::ActuatorParams;
+use rand::{Rng, RngExt, SeedableRng};
+
+/// What a case contains.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Kind {
+    /// One library effect.
+    Single(&'static str),
+    /// Two library effects.
+    Pair(&'static str, &'static str),
+    /// One effect outside the diagnosis library.
+    OutOfLibrary(&'static str),
+    /// Noise and nuisances only.
+    NoiseOnly,
+}
+
+impl Kind {
+    /// The verdicts a correct diagnosis gives: the named set (`verdict` plus
+    /// `additional_effects`), `["unexplained"]` or `["none"]`.
+    pub fn expected(&self) -> Vec<&'static str> {
+        match self {
+            Kind::Single(e) => vec![e],
+            Kind::Pair(a, b) => {
+                let mut v = vec![*a, *b];
+                v.sort();
+                v
+            }
+            Kind::OutOfLibrary(_) => vec!["unexplained"],
+            Kind::NoiseOnly => vec!["none"],
+        }
+    }
+
+    /// A short label for tables: the effect, `a+b`, `(backlash)`, `noise`.
+    pub fn label(&self) -> String {
+        match self {
+            Kind::Single(e) => e.to_string(),
+            Kind::Pair(a, b) => format!("{a}+{b}"),
+            Kind::OutOfLibrary(e) => format!("({e})"),
+            Kind::NoiseOnly => "noise only".into(),
+        }
+    }
+}
+
+/// A drawn case.
+#[derive(Debug, Clone)]
+pub struct Case {
+    /// Seed it was drawn from.
+    pub seed: u64,
+    /// What it contains.
+    pub kind: Kind,
+    /// The effects, calibrated.
+    pub effects: Vec<Effect>,
+    /// Target gap of each effect.
+    pub target_gaps: Vec<f64>,
+    /// Gap each effect reaches after calibration.
+    pub gaps: Vec<f64>,
+    /// Recording settings (nuisances).
+    pub settings: BenchSettings,
+    /// Start state of every experiment.
+    pub start: StartState,
+    /// Whether `dataset.json` documents the start state.
+    pub documented: bool,
+    /// The experiments.
+    pub experiments: Vec<Experiment>,
+}
+
+impl Case {
+    /// One line describing the case.
+    pub fn describe(&self) -> String {
+        let fx: Vec<String> = self
+            .effects
+            .iter()
+            .zip(&self.gaps)
+            .map(|(e, g)| format!("{e} gap {:.1} %", 100.0 * g))
+            .collect();
+        format!(
+            "seed {} {}: {}; current {}, skew {:+.2}, offset {:.2} um, noise {:.3} um, start {}{}",
+            self.seed,
+            self.kind.label(),
+            if fx.is_empty() {
+                "no effect".into()
+            } else {
+                fx.join("; ")
+            },
+            match self.settings.current_between_samples {
+                CurrentBetweenSamples::Hold => "hold",
+                CurrentBetweenSamples::Linear => "linear",
+            },
+            self.settings.channel_skew_samples,
+            self.settings.sensor_offset_m * 1e6,
+            self.settings.noise_m * 1e6,
+            self.start.name(),
+            if self.documented { " (documented)" } else { "" }
+        )
+    }
+
+    /// Records the case's dataset.
+    pub fn record(&self, params: &ActuatorParams) -> Result<Vec<Recording>, String> {
+        record_all(params, &self.effects, &self.experiments, &self.settings)
+    }
+}
+
+fn log_uniform(rng: &mut impl Rng, lo: f64, hi: f64) -> f64 {
+    (rng.random_range(lo.ln()..hi.ln())).exp()
+}
+
+/// Draws the shape parameters of `name` (not its magnitude).
+fn shaped(name: &str, rng: &mut impl Rng) -> Result<Effect, String> {
+    let e = Effect::default_for(name)?;
+    Ok(match name {
+        "eddy_frequency_dependence" => e
+            .with("first_corner_hz", log_uniform(rng, 80.0, 600.0))?
+            .with("paths", rng.random_range(3..=6) as f64)?,
+        "amplifier_bandwidth" => e
+            .with("damping_ratio", rng.random_range(0.5..1.0))?
+            .with("slew_a_per_s", log_uniform(rng, 2e3, 2e4))?,
+        "sensor_dynamics" => e
+            .with("damping_ratio", rng.random_range(0.5..1.0))?
+            .with("delay_s", rng.random_range(0.0..1e-4))?,
+        "reversible_magnetization" => {
+            e.with("saturation_field_a_per_m", log_uniform(rng, 8e3, 4e4))?
+        }
+        "thermal_drift" => e
+            .with("coil_time_constant_s", log_uniform(rng, 0.5, 5.0))?
+            .with("rod_time_constant_s", log_uniform(rng, 0.3, 3.0))?
+            .with("magnetostriction_loss_per_k", rng.random_range(5e-3..2e-2))?
+            .with("expansion_m_per_k", rng.random_range(0.0..1e-6))?,
+        "delta_e_effect" => e.with("stress_stiffening", rng.random_range(0.0..1.0))?,
+        "mechanical_load" => e
+            .with("mass_ratio", log_uniform(rng, 0.1, 1.0))?
+            .with("damping_ratio", rng.random_range(0.05..0.3))?
+            .with("second_mass_ratio", rng.random_range(0.2..1.0))?
+            .with("second_coupling_hz", log_uniform(rng, 1500.0, 4000.0))?
+            .with("second_damping_ratio", rng.random_range(0.03..0.2))?,
+        "stick_slip" => e.with("kinetic_ratio", rng.random_range(0.5..0.9))?,
+        "creep" => e.with("time_constant_s", log_uniform(rng, 0.005, 0.05))?,
+        "sensor_nonlinearity" => {
+            let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            e.with("gain_change", sign * 0.1)?
+                .with("null_m", rng.random_range(20e-6..30e-6))?
+                .with("range_m", rng.random_range(15e-6..25e-6))?
+        }
+        _ => e,
+    })
+}
+
+/// The effect with its magnitude parameter set to `value` (keeping its sign for signed ones).
+fn with_magnitude(e: &Effect, value: f64) -> Result<Effect, String> {
+    let (key, _) = e.spec.magnitude;
+    let sign = if e.magnitude() < 0.0 { -1.0 } else { 1.0 };
+    e.clone().with(key, sign * value)
+}
+
+/// Noise-free recordings of the lowest- and highest-frequency experiments (run as the dataset
+/// runs them: each on its own plant, or the whole chain on one when experiments start where the
+/// previous one ended).
+pub struct GapRuns {
+    runs: Vec<(Recording, bool)>,
+    settings: BenchSettings,
+}
+
+impl GapRuns {
+    /// Runs `experiments` on a plant with `effects`, keeping the extreme-frequency ones.
+    pub fn new(
+        params: &ActuatorParams,
+        effects: &[Effect],
+        experiments: &[Experiment],
+        settings: &BenchSettings,
+    ) -> Result<Self, String> {
+        let freqs: Vec<f64> = experiments
+            .iter()
+            .map(|e| frequency_of(&e.description))
+            .collect();
+        let top = freqs.iter().cloned().fold(0.0, f64::max);
+        let bottom = freqs.iter().cloned().fold(f64::MAX, f64::min);
+        let keep = |f: f64| f >= 0.999 * top || f <= 1.001 * bottom;
+        let quiet = BenchSettings {
+            noise_m: 0.0,
+            quantization_m: 0.0,
+            ..*settings
+        };
+        let chained = experiments.iter().any(|e| e.start == StartState::Previous);
+        let runs = if chained {
+            let mut plant = crate::Plant::new(params, effects, quiet.rate_hz)?;
+            let mut out = Vec::new();
+            for (e, &f) in experiments.iter().zip(&freqs) {
+                let r = record(&mut plant, e, &quiet, 0)?;
+                if keep(f) {
+                    out.push((r, f >= 0.999 * top));
+                }
+            }
+            out
+        } else {
+            experiments
+                .iter()
+                .zip(&freqs)
+                .filter(|(_, &f)| keep(f))
+                .map(|(e, &f)| {
+                    let mut plant = crate::Plant::new(params, effects, quiet.rate_hz)?;
+                    Ok((record(&mut plant, e, &quiet, 0)?, f >= 0.999 * top))
+                })
+                .collect::<Result<Vec<_>, String>>()?
+        };
+        Ok(GapRuns {
+            runs,
+            settings: quiet,
+        })
+    }
+}
+
+/// Catmull-Rom interpolation of uniformly sampled `y` at fractional index `x` (clamped).
+fn interpolate(y: &[f64], x: f64) -> f64 {
+    let n = y.len();
+    if n < 4 {
+        return y[x.round().clamp(0.0, (n - 1) as f64) as usize];
+    }
+    let x = x.clamp(0.0, (n - 1) as f64);
+    let i = (x.floor() as usize).min(n - 2);
+    let t = x - i as f64;
+    let p0 = y[i.saturating_sub(1)];
+    let (p1, p2) = (y[i], y[i + 1]);
+    let p3 = y[(i + 2).min(n - 1)];
+    0.5 * (2.0 * p1
+        + (p2 - p0) * t
+        + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * t * t
+        + (3.0 * p1 - p0 - 3.0 * p2 + p3) * t * t * t)
+}
+
+/// The gap (module docs) of `with` against `without` (the same experiments).
+pub fn gap_between(with: &GapRuns, without: &GapRuns) -> f64 {
+    // Mean-removed RMS of the difference over the top (or the other) experiments, with the
+    // effect's reading shifted by `shift` samples (interpolated between its samples).
+    let rms = |shift: f64, top: bool| -> f64 {
+        let (mut sum, mut sum2, mut n) = (0.0, 0.0, 0usize);
+        for ((a, is_top), (b, _)) in with.runs.iter().zip(&without.runs) {
+            if *is_top != top {
+                continue;
+            }
+            let skip = a.t_s.len() / 10;
+            for k in skip..a.t_s.len() {
+                let d = interpolate(&a.clean_displacement_m, k as f64 + shift)
+                    - b.clean_displacement_m[k];
+                sum += d;
+                sum2 += d * d;
+                n += 1;
+            }
+        }
+        let n = n.max(1) as f64;
+        (sum2 / n - (sum / n) * (sum / n)).max(0.0).sqrt()
+    };
+    let _ = with.settings;
+    // The common shift: the best for the lowest and highest frequencies together.
+    let joint = |shift: f64| rms(shift, true).powi(2) + rms(shift, false).powi(2);
+    let (mut a, mut b) = (-NUISANCE_SHIFT_SAMPLES, NUISANCE_SHIFT_SAMPLES);
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (joint(c), joint(d));
+    for _ in 0..30 {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = joint(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = joint(d);
+        }
+    }
+    let shift = if joint(0.5 * (a + b)) < joint(0.0) {
+        0.5 * (a + b)
+    } else {
+        0.0
+    };
+    let (lo, hi) = without
+        .runs
+        .iter()
+        .filter(|r| r.1)
+        .flat_map(|(r, _)| r.clean_displacement_m.iter())
+        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    rms(shift, true) / (hi - lo).max(1e-300)
+}
+
+/// The gap (module docs) of `effects`.
+pub fn gap(
+    params: &ActuatorParams,
+    effects: &[Effect],
+    experiments: &[Experiment],
+    settings: &BenchSettings,
+) -> Result<f64, String> {
+    let with = GapRuns::new(params, effects, experiments, settings)?;
+    let without = GapRuns::new(params, &[], experiments, settings)?;
+    Ok(gap_between(&with, &without))
+}
+
+/// The time shift of the reading a diagnosis absorbs as nuisances (a channel skew under one
+/// sample, a held or linear current: half a sample), samples.
+pub const NUISANCE_SHIFT_SAMPLES: f64 = 1.5;
+
+fn frequency_of(description: &str) -> f64 {
+    description
+        .strip_prefix("sine ")
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|f| f.parse().ok())
+        .unwrap_or(0.0)
+}
+
+/// Sets `effect`'s magnitude so that its gap alone is `target`: the smallest magnitude that
+/// reaches it (from the default, steps of ×3 towards a smaller or larger effect until the target
+/// is bracketed, then bisection on a log scale); returns the effect and the gap reached (below
+/// the target when the gap stops growing before the target, or at the end of the parameter's
+/// range).
+pub fn calibrate(
+    params: &ActuatorParams,
+    effect: &Effect,
+    target: f64,
+    experiments: &[Experiment],
+    settings: &BenchSettings,
+) -> Result<(Effect, f64), String> {
+    let (key, increasing) = effect.spec.magnitude;
+    let (_, _, lo, hi, _) = *effect
+        .spec
+        .keys
+        .iter()
+        .find(|k| k.0 == key)
+        .ok_or("magnitude key missing")?;
+    // The magnitude on a log scale, in the direction that makes the effect larger.
+    let limit_big = if increasing {
+        hi.abs().max(lo.abs())
+    } else {
+        lo.abs().max(1e-12)
+    };
+    let limit_small = if increasing {
+        limit_big * 1e-6
+    } else {
+        hi.abs()
+    };
+    let without = GapRuns::new(params, &[], experiments, settings)?;
+    let gap_at = |m: f64| -> Result<(Effect, f64), String> {
+        let e = with_magnitude(effect, m)?;
+        let with = GapRuns::new(params, std::slice::from_ref(&e), experiments, settings)?;
+        Ok((e, gap_between(&with, &without)))
+    };
+    let toward_big = |m: f64| {
+        if increasing {
+            (m * 3.0).min(limit_big)
+        } else {
+            (m / 3.0).max(limit_big)
+        }
+    };
+    let toward_small = |m: f64| {
+        if increasing {
+            (m / 3.0).max(limit_small)
+        } else {
+            (m * 3.0).min(limit_small)
+        }
+    };
+    let mut m = effect
+        .magnitude()
+        .abs()
+        .clamp(limit_small.min(limit_big), limit_small.max(limit_big));
+    let (mut e, mut g) = gap_at(m)?;
+    // Bracket: (small side below the target, big side at or above it).
+    let (mut small, mut big);
+    if g >= target {
+        big = (m, e.clone(), g);
+        loop {
+            let next = toward_small(m);
+            if next == m {
+                return Ok((e, g));
+            }
+            m = next;
+            (e, g) = gap_at(m)?;
+            if g < target {
+                small = m;
+                break;
+            }
+            big = (m, e.clone(), g);
+        }
+    } else {
+        loop {
+            let next = toward_big(m);
+            if next == m {
+                return Ok((e, g));
+            }
+            small = m;
+            m = next;
+            let (e2, g2) = gap_at(m)?;
+            if g2 >= target {
+                big = (m, e2, g2);
+                break;
+            }
+            if g2 < 1.05 * g {
+                // The gap no longer grows with the magnitude: the target is out of this
+                // effect's reach; keep the smallest magnitude of the plateau.
+                return Ok((e, g));
+            }
+            (e, g) = (e2, g2);
+        }
+    }
+    // Bisection (log scale) between the bracket's ends.
+    for _ in 0..8 {
+        let mid = (small.ln() * 0.5 + big.0.ln() * 0.5).exp();
+        let (e, g) = gap_at(mid)?;
+        if (g / target).ln().abs() < 0.03 {
+            return Ok((e, g));
+        }
+        if g >= target {
+            big = (mid, e, g);
+        } else {
+            small = mid;
+        }
+    }
+    Ok((big.1, big.2))
+}
+
+/// Draws and calibrates a case of `kind` from `seed`.
+pub fn draw(params: &ActuatorParams, seed: u64, kind: Kind) -> Result<Case, String> {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let settings = BenchSettings {
+        rate_hz: 10_000.0,
+        current_between_samples: if rng.random_bool(0.5) {
+            CurrentBetweenSamples::Hold
+        } else {
+            CurrentBetweenSamples::Linear
+        },
+        channel_skew_samples: rng.random_range(-0.8..0.8),
+        sensor_offset_m: rng.random_range(-2e-6..2e-6),
+        noise_m: log_uniform(&mut rng, 0.05e-6, 0.3e-6),
+        quantization_m: 2e-9,
+        seed: seed.wrapping_mul(31).wrapping_add(7),
+    };
+    let starts = [
+        StartState::SwitchOnDemagnetized,
+        StartState::Demagnetized,
+        StartState::NegativeSaturation,
+        StartState::PositiveSaturation,
+        StartState::Previous,
+    ];
+    let start = starts[rng.random_range(0..starts.len())];
+    let documented = rng.random_bool(0.5);
+    let bias: f64 = rng.random_range(0.45..0.6);
+    let a1: f64 = rng.random_range(0.12..0.2);
+    let a2 = (a1 * rng.random_range(1.8f64..2.2)).min(bias - 0.05);
+    let mut experiments = Vec::new();
+    for f in [20.0, 50.0, 100.0, 200.0, 300.0, 400.0] {
+        let f = f * rng.random_range(0.95..1.05);
+        for a in [a1, a2] {
+            experiments.push(sine_experiment(
+                experiments.len(),
+                start,
+                bias,
+                a,
+                f,
+                0.5,
+                1e4,
+            ));
+        }
+    }
+    let names: Vec<&'static str> = match &kind {
+        Kind::Single(e) | Kind::OutOfLibrary(e) => vec![e],
+        Kind::Pair(a, b) => vec![a, b],
+        Kind::NoiseOnly => vec![],
+    };
+    let (lo, hi) = if matches!(kind, Kind::Pair(..)) {
+        (0.05, 0.20)
+    } else {
+        (0.05, 0.30)
+    };
+    let mut effects = Vec::new();
+    let mut target_gaps = Vec::new();
+    let mut gaps = Vec::new();
+    for name in names {
+        let target = log_uniform(&mut rng, lo, hi);
+        // An effect whose plausible range cannot reach the target gets a new shape (up to four
+        // draws; the last one is kept whatever it reaches).
+        let mut result = None;
+        for _ in 0..4 {
+            let e = shaped(name, &mut rng)?;
+            let (e, g) = calibrate(params, &e, target, &experiments, &settings)?;
+            let reached = g >= 0.9 * target;
+            result = Some((e, g));
+            if reached {
+                break;
+            }
+        }
+        let (e, g) = result.ok_or("no draw")?;
+        effects.push(e);
+        target_gaps.push(target);
+        gaps.push(g);
+    }
+    Ok(Case {
+        seed,
+        kind,
+        effects,
+        target_gaps,
+        gaps,
+        settings,
+        start,
+        documented,
+        experiments,
+    })
+}
+
+/// The effects of the plant by library membership.
+pub fn names(in_library: bool) -> Vec<&'static str> {
+    EFFECTS
+        .iter()
+        .filter(|s| s.in_library == in_library)
+        .map(|s| s.name)
+        .collect()
+}
+
+/// The kinds of a suite of `count` cases from `seed`: every library effect twice, every
+/// out-of-library effect twice, random pairs, and noise-only cases, in an order drawn from the
+/// seed (`count` ≥ 32 keeps every kind).
+pub fn kinds(seed: u64, count: usize) -> Vec<Kind> {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x5eed);
+    let library = names(true);
+    let outside = names(false);
+    let mut kinds = Vec::new();
+    for _ in 0..2 {
+        kinds.extend(library.iter().map(|e| Kind::Single(e)));
+        kinds.extend(outside.iter().map(|e| Kind::OutOfLibrary(e)));
+    }
+    let noise = (count / 8).max(1);
+    let pairs = count.saturating_sub(kinds.len() + noise).max(1);
+    for _ in 0..pairs {
+        let a = rng.random_range(0..library.len());
+        let mut b = rng.random_range(0..library.len() - 1);
+        if b >= a {
+            b += 1;
+        }
+        kinds.push(Kind::Pair(library[a.min(b)], library[a.max(b)]));
+    }
+    for _ in 0..noise {
+        kinds.push(Kind::NoiseOnly);
+    }
+    // Fisher-Yates with the seed.
+    for i in (1..kinds.len()).rev() {
+        let j = rng.random_range(0..=i);
+        kinds.swap(i, j);
+    }
+    kinds
+}
