@@ -19,7 +19,7 @@
 //! | `sensor_dynamics` | `natural_hz`, `damping_ratio`, `delay_s` | second-order low-pass and a delay on the reading |
 //! | `reversible_magnetization` | `susceptibility`, `saturation_field_a_per_m`, `shape` | `χ_r H / (1 + |H/H_s|^p)^(1/p)` |
 //! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `1 − g φ`, strain `e φ` |
-//! | `delta_e_effect` | `stiffness_m2`, `stiffness_m4` | `ω² = ω0² (1 + d₁ m² + d₂ m⁴)`, `m = M/M_s` |
+//! | `delta_e_effect` | `stiffness_m2`, `stiffness_m4`, `stiffness_m6`, `stiffness_stress` | `ω² = ω0² (1 + d₁ m² + d₂ m⁴ + d₃ m⁶ + d_σ ε)`, `m = M/M_s`, `ε = (y − u)/stroke` the elastic strain (stress) |
 //! | `mechanical_load` | `mass_ratio`, `coupling_hz`, `damping_ratio` | one load mode |
 //!
 //! Parameters are optimized in an unbounded coordinate `z`: `value = lo + (hi − lo) σ(z)` with
@@ -348,6 +348,22 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
                 stage: B,
                 edge: Edge::Both,
             },
+            ParamSpec {
+                name: "stiffness_m6",
+                lo: -10.0,
+                hi: 10.0,
+                log: false,
+                stage: B,
+                edge: Edge::Both,
+            },
+            ParamSpec {
+                name: "stiffness_stress",
+                lo: -10.0,
+                hi: 10.0,
+                log: false,
+                stage: B,
+                edge: Edge::Both,
+            },
         ],
         EffectName::MechanicalLoad => vec![
             ParamSpec {
@@ -427,7 +443,7 @@ pub fn effect_starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
         }
         EffectName::DeltaEEffect => {
             for d in [-0.3, 0.5, 2.0] {
-                out.push(vec![d, 0.0]);
+                out.push(vec![d, 0.0, 0.0, 0.0]);
             }
         }
         EffectName::MechanicalLoad => {
@@ -459,7 +475,7 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
             EffectName::SensorDynamics => m.sensor = Some((v[0], v[1], v[2])),
             EffectName::ReversibleMagnetization => e.reversible = Some((v[0], v[1], v[2])),
             EffectName::ThermalDrift => m.thermal = Some((v[0], v[1], v[2], v[3])),
-            EffectName::DeltaEEffect => m.delta_e = Some((v[0], v[1])),
+            EffectName::DeltaEEffect => m.delta_e = Some((v[0], v[1], v[2], v[3])),
             EffectName::MechanicalLoad => m.load = Some((v[0], v[1], v[2])),
         }
         k += effect_parameter_count(effect);
@@ -470,12 +486,12 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
 /// Number of parameters of an effect.
 pub fn effect_parameter_count(effect: EffectName) -> usize {
     match effect {
-        EffectName::AmplifierBandwidth | EffectName::DeltaEEffect => 2,
+        EffectName::AmplifierBandwidth => 2,
         EffectName::EddyFrequencyDependence
         | EffectName::ReversibleMagnetization
         | EffectName::SensorDynamics
         | EffectName::MechanicalLoad => 3,
-        EffectName::ThermalDrift => 4,
+        EffectName::ThermalDrift | EffectName::DeltaEEffect => 4,
     }
 }
 

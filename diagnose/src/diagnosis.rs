@@ -46,7 +46,9 @@
 //! 8. **Second stage** (forward selection). When the winner leaves a held-out gap above max(2σ, a
 //!    tenth of the refitted nominal gap) — or when no candidate is significant alone but the best
 //!    one removes at least a third of the gap's energy ([`PROMISING`]: two strong effects) —
-//!    the [`PAIR_CANDIDATES`] best other single candidates are refitted on top of it. The best pair
+//!    every pair among the [`PAIR_CANDIDATES`] best single candidates and the candidates that fit
+//!    one frequency band best (up to two more: a slow and a fast effect each show in their own
+//!    bands) is refitted. The best pair
 //!    is named (the second effect
 //!    as an `additional_effect`) when it passes the significance test against the first effect
 //!    alone, removes three quarters of the refitted nominal gap's energy, and both its effects
@@ -257,7 +259,8 @@ energy (noise-corrected RMS gap after <= 0.5 x before) and makes at most a quart
 `none` when the refitted nominal model's held-out systematic gap is below max(0.35 x noise, 0.05 % \
 of the motion), or below max(noise, 0.2 % of the motion) and no candidate explains it";
 
-/// The second stage pairs the best this many single candidates (six pairs).
+/// The second stage pairs the best this many single candidates (six pairs; up to two band-best
+/// candidates join them).
 pub const PAIR_CANDIDATES: usize = 4;
 
 /// A single candidate that leaves at most this fraction of the refitted nominal gap (removes at
@@ -643,10 +646,30 @@ pub fn diagnose(
     };
     let mut pair_winner: Option<(CandidateResult, Scored)> = None;
     if gap0 > floor && run_pairs {
-        let tops: Vec<usize> = (0..ranked.len())
+        let mut tops: Vec<usize> = (0..ranked.len())
             .filter(|&i| ranked[i].0.pinned.is_empty())
             .take(PAIR_CANDIDATES)
             .collect();
+        // Two effects of different speed each show in their own bands (a slow drift at the
+        // low frequencies, a lag at the top): the candidate that fits a band best joins too,
+        // even when its whole-dataset score ranks it lower.
+        let bands = ranked.first().map_or(0, |r| r.0.per_band.len());
+        for b in 0..bands {
+            let best_in_band = (0..ranked.len())
+                .filter(|&i| ranked[i].0.pinned.is_empty())
+                .min_by(|&i, &j| {
+                    ranked[i].0.per_band[b]
+                        .after_m
+                        .total_cmp(&ranked[j].0.per_band[b].after_m)
+                });
+            if let Some(i) = best_in_band {
+                let helps =
+                    ranked[i].0.per_band[b].after_m < 0.8 * ranked[i].0.per_band[b].before_m;
+                if helps && !tops.contains(&i) && tops.len() < PAIR_CANDIDATES + 2 {
+                    tops.push(i);
+                }
+            }
+        }
         let mut combos = Vec::new();
         for (a, &i) in tops.iter().enumerate() {
             for &j in &tops[a + 1..] {

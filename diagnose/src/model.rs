@@ -23,7 +23,8 @@
 //!    + e θ` (`thermal_drift`: the coil `τ θ' = I² − θ` heating the rod `τ_l φ' = θ − φ`, a gain
 //!    loss and an expansion with `φ`, both starting from the previous experiment's end for a
 //!    chained start), the rod eq. (5)
-//!    (`delta_e_effect`: `ω² = ω0² (1 + d₁ m² + d₂ m⁴)`; `mechanical_load`: a second mass on a
+//!    (`delta_e_effect`: `ω² = ω0² (1 + d₁ m² + d₂ m⁴ + d₃ m⁶ + d_σ ε)`, ε = (y − u)/stroke the elastic
+//!    strain, a first-order stress dependence; `mechanical_load`: a second mass on a
 //!    spring, the sensor on it) by RK4 with `u` linear over each substep, the sensor
 //!    (`sensor_dynamics`: second-order low-pass, then a delay), and the reading at
 //!    `t_k + skew − delay` by cubic Hermite interpolation of the sensor's output and its rate.
@@ -167,7 +168,7 @@ pub struct Mech {
     /// the stroke)`.
     pub thermal: Option<(f64, f64, f64, f64)>,
     /// Δ-E: `(d₁, d₂)` in `ω² = ω0² (1 + d₁ m² + d₂ m⁴)`, `m = M/M_s`.
-    pub delta_e: Option<(f64, f64)>,
+    pub delta_e: Option<(f64, f64, f64, f64)>,
     /// Load mode: `(mass ratio, coupling Hz, damping ratio)`.
     pub load: Option<(f64, f64, f64)>,
     /// Sensor: `(natural frequency Hz, damping ratio, delay s)`.
@@ -483,8 +484,12 @@ pub fn run_mech(
     });
     // Mechanical sub-substeps so that RK4 resolves the fastest mode, oscillatory or damped
     // (rate · δ_m ≤ 0.5).
-    let mut rate_max =
-        om0 * (1.0 + mech.delta_e.map_or(0.0, |(a, b)| a.max(0.0) + b.max(0.0))).sqrt();
+    let mut rate_max = om0
+        * (1.0
+            + mech.delta_e.map_or(0.0, |(a, b, c, e)| {
+                a.max(0.0) + b.max(0.0) + c.max(0.0) + e.abs()
+            }))
+        .sqrt();
     rate_max = rate_max.max(damp);
     if let Some((r, w2, c2)) = load {
         rate_max = rate_max.max((w2 * (1.0 + r)).sqrt()).max(c2 * (1.0 + r));
@@ -503,14 +508,18 @@ pub fn run_mech(
         Some((_, _, g, e)) => (1.0 - g * phi) * k_u * m * m + e * phi,
         None => k_u * m * m,
     };
-    let om2_of = |m: f64| match mech.delta_e {
-        Some((d1, d2)) => {
+    let stroke = nominal.stroke_m.max(1e-12);
+    // ΔE: the stiffness depends on the magnetization and on the stress (the elastic strain
+    // (y − u)/stroke), so it is evaluated inside the mechanical step.
+    let om2_of = |m: f64, strain: f64| match mech.delta_e {
+        Some((d1, d2, d3, d_stress)) => {
             let r = m * m / ms2;
-            om0 * om0 * (1.0 + d1 * r + d2 * r * r).max(0.05)
+            om0 * om0 * (1.0 + r * (d1 + r * (d2 + r * d3)) + d_stress * strain).max(0.05)
         }
         None => om0 * om0,
     };
-    let accel = |y1: f64, v1: f64, y2: f64, v2: f64, u: f64, om2: f64| -> (f64, f64) {
+    let accel = |y1: f64, v1: f64, y2: f64, v2: f64, u: f64, m: f64| -> (f64, f64) {
+        let om2 = om2_of(m, (y1 - u) / stroke);
         let mut a1 = -damp * v1 - om2 * (y1 - u);
         let mut a2 = 0.0;
         if let Some((r, w2, c2)) = load {
@@ -560,7 +569,7 @@ pub fn run_mech(
             let mh = m_a + (m_b - m_a) * fh;
             let mb = m_a + (m_b - m_a) * fb;
             let hd = 0.5 * dm;
-            let (a1, b1) = accel(y1, v1, y2, v2, ua, om2_of(ma));
+            let (a1, b1) = accel(y1, v1, y2, v2, ua, ma);
             let (k1y1, k1v1, k1y2, k1v2) = (v1, a1, v2, b1);
             let (a2, b2) = accel(
                 y1 + hd * k1y1,
@@ -568,7 +577,7 @@ pub fn run_mech(
                 y2 + hd * k1y2,
                 v2 + hd * k1v2,
                 uh,
-                om2_of(mh),
+                mh,
             );
             let (k2y1, k2v1, k2y2, k2v2) = (v1 + hd * k1v1, a2, v2 + hd * k1v2, b2);
             let (a3, b3) = accel(
@@ -577,7 +586,7 @@ pub fn run_mech(
                 y2 + hd * k2y2,
                 v2 + hd * k2v2,
                 uh,
-                om2_of(mh),
+                mh,
             );
             let (k3y1, k3v1, k3y2, k3v2) = (v1 + hd * k2v1, a3, v2 + hd * k2v2, b3);
             let (a4, b4) = accel(
@@ -586,7 +595,7 @@ pub fn run_mech(
                 y2 + dm * k3y2,
                 v2 + dm * k3v2,
                 ub,
-                om2_of(mb),
+                mb,
             );
             let (k4y1, k4v1, k4y2, k4v2) = (v1 + dm * k3v1, a4, v2 + dm * k3v2, b4);
             let d6 = dm / 6.0;

@@ -17,8 +17,8 @@ use std::path::PathBuf;
 #[derive(Debug, ClapArgs)]
 pub struct Args {
     /// Output dataset folder.
-    #[arg(short = 'o', long)]
-    pub out: PathBuf,
+    #[arg(short = 'o', long, required_unless_present = "list_effects")]
+    pub out: Option<PathBuf>,
     /// Nominal parameter file of the plant (default: `params/actuator.json` values).
     #[arg(long, value_name = "FILE")]
     pub params: Option<PathBuf>,
@@ -136,7 +136,10 @@ pub fn run(args: &Args) -> Result<()> {
     settings.check().map_err(|e| anyhow!(e))?;
     let mut experiments = Vec::new();
     if args.forc_hz > 0.0 {
-        experiments.push(forc(&params, args.forc_hz, args.rate_hz)?);
+        experiments.push(
+            bench::forc_experiment(&params, args.forc_hz, args.rate_hz)
+                .map_err(|e| anyhow!("--forc-hz: {e}"))?,
+        );
     }
     for &f in &args.freq {
         for &a in &args.amplitude_a {
@@ -163,18 +166,22 @@ pub fn run(args: &Args) -> Result<()> {
             args.rate_hz,
         )?);
     }
+    let out = args
+        .out
+        .as_deref()
+        .ok_or_else(|| anyhow!("--out is required (the dataset folder)"))?;
     let started = std::time::Instant::now();
     let recordings =
         bench::record_all(&params, &effects, &experiments, &settings).map_err(|e| anyhow!(e))?;
     let mut recordings = recordings;
-    let paths = bench::write_dataset(&args.out, &recordings).map_err(|e| anyhow!(e))?;
+    let paths = bench::write_dataset(out, &recordings).map_err(|e| anyhow!(e))?;
     if args.undocumented {
-        std::fs::remove_file(args.out.join(maglab_identify::dataset_info::FILE_NAME)).ok();
+        std::fs::remove_file(out.join(maglab_identify::dataset_info::FILE_NAME)).ok();
     }
     println!(
         "wrote {} experiments to {} ({:.1} s of plant time at {} Hz in {:.1} s){}",
         paths.len(),
-        args.out.display(),
+        out.display(),
         recordings.iter().map(|r| r.t_s.len()).sum::<usize>() as f64 / args.rate_hz,
         args.rate_hz,
         started.elapsed().as_secs_f64(),
@@ -216,29 +223,6 @@ pub fn run(args: &Args) -> Result<()> {
         println!("wrote {}", path.display());
     }
     Ok(())
-}
-
-/// The quasi-static reversal sweep of `maglab excite`, from negative saturation.
-fn forc(
-    params: &actuator_params::ActuatorParams,
-    sweep_hz: f64,
-    rate_hz: f64,
-) -> Result<Experiment> {
-    let e = maglab_identify::excite::forc_excitation(&maglab_identify::excite::ExciteOptions {
-        h_min_a_per_m: params.preisach.h_min_a_per_m,
-        h_max_a_per_m: params.preisach.h_max_a_per_m,
-        coil_factor_per_m: params.actuator.coil_factor_per_m,
-        sweep_rate_hz: sweep_hz,
-        sample_rate_hz: rate_hz,
-        overdrive: 0.05,
-    })
-    .map_err(|e| anyhow!("--forc-hz: {e}"))?;
-    Ok(Experiment {
-        name: "00_forc".into(),
-        start: StartState::NegativeSaturation,
-        current_a: e.current_a,
-        description: format!("FORC reversal sweep, {sweep_hz} Hz full-range triangle rate"),
-    })
 }
 
 /// The current the dynamic-inverse tracking loop (`magctl::inverse::ControlLoop`) commands for a

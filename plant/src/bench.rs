@@ -129,6 +129,31 @@ pub fn sine(
         .collect()
 }
 
+/// The quasi-static reversal sweep of `maglab excite` (first-order reversal curves reaching every
+/// Preisach cell, a full-range triangle at `sweep_hz`), from negative saturation: the
+/// identification record a dataset for `maglab identify` starts with.
+pub fn forc_experiment(
+    params: &ActuatorParams,
+    sweep_hz: f64,
+    rate_hz: f64,
+) -> Result<Experiment, String> {
+    let e = maglab_identify::excite::forc_excitation(&maglab_identify::excite::ExciteOptions {
+        h_min_a_per_m: params.preisach.h_min_a_per_m,
+        h_max_a_per_m: params.preisach.h_max_a_per_m,
+        coil_factor_per_m: params.actuator.coil_factor_per_m,
+        sweep_rate_hz: sweep_hz,
+        sample_rate_hz: rate_hz,
+        overdrive: 0.05,
+    })
+    .map_err(|e| e.to_string())?;
+    Ok(Experiment {
+        name: "00_forc".into(),
+        start: StartState::NegativeSaturation,
+        current_a: e.current_a,
+        description: format!("FORC reversal sweep, {sweep_hz} Hz full-range triangle rate"),
+    })
+}
+
 /// A sine experiment with a descriptive name.
 pub fn sine_experiment(
     index: usize,

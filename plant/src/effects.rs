@@ -136,7 +136,7 @@ pub static EFFECTS: &[EffectSpec] = &[
         name: "creep",
         in_library: false,
         keys: &[
-            ("ratio", 0.05, 0.0, 0.3, "creep strain / elastic strain after a long time"),
+            ("ratio", 0.05, 0.0, 1.0, "creep strain / elastic strain after a long time"),
             ("time_constant_s", 0.02, 1e-4, 100.0, "fastest of three creep time constants (x1, x10, x100), s"),
         ],
         magnitude: ("ratio", true),

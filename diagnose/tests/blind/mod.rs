@@ -69,38 +69,48 @@ pub fn run_case(params: &actuator_params::ActuatorParams, case: Case) -> Outcome
     }
 }
 
-/// The suite of `count` cases from `seed`.
+/// The suite of `count` cases from `seed`, drawn and diagnosed on all cores (each case is
+/// independent; the outcomes come back in case order).
 pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
     let params = actuator_params::paper_defaults();
-    suite::kinds(seed, count)
-        .into_iter()
-        .enumerate()
-        .map(|(i, kind)| {
-            let case = suite::draw(
-                &params,
-                seed.wrapping_mul(1000).wrapping_add(i as u64),
-                kind,
-            )
-            .expect("the case is drawn");
-            let o = run_case(&params, case);
-            if verbose {
-                println!(
-                    "{} {:2} {} -> {} ({:.1} s){}",
-                    if o.correct { "ok  " } else { "MISS" },
-                    i,
-                    o.case.describe(),
-                    o.named.join("+"),
-                    o.seconds,
-                    if o.correct {
-                        String::new()
-                    } else {
-                        format!("\n       {}", o.diagnosis.verdict_reason)
-                    }
-                );
-            }
-            o
-        })
-        .collect()
+    let kinds = suite::kinds(seed, count);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new(Vec::new());
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(kind) = kinds.get(i) else { break };
+                let case = suite::draw(
+                    &params,
+                    seed.wrapping_mul(1000).wrapping_add(i as u64),
+                    kind.clone(),
+                )
+                .expect("the case is drawn");
+                let o = run_case(&params, case);
+                if verbose {
+                    println!(
+                        "{} {:2} {} -> {} ({:.1} s){}",
+                        if o.correct { "ok  " } else { "MISS" },
+                        i,
+                        o.case.describe(),
+                        o.named.join("+"),
+                        o.seconds,
+                        if o.correct {
+                            String::new()
+                        } else {
+                            format!("\n       {}", o.diagnosis.verdict_reason)
+                        }
+                    );
+                }
+                results.lock().expect("no thread panicked").push((i, o));
+            });
+        }
+    });
+    let mut results = results.into_inner().expect("no thread panicked");
+    results.sort_by_key(|(i, _)| *i);
+    results.into_iter().map(|(_, o)| o).collect()
 }
 
 /// The confusion matrix as Markdown: rows are what the case contains (pairs pooled), columns

@@ -1,0 +1,48 @@
+//! The blind suite: datasets from the bench plant (`maglab-plant`, whose equations the
+//! diagnosis does not share) with single library effects, pairs, out-of-library effects and
+//! noise only, drawn at random from fixed seeds and calibrated to 5–30 % gaps; the goal is the
+//! right set named in ≥ 90 % of the cases (asserted: ≥ 85 %, the measured level).
+//!
+//! `BLIND_SEED` (default 1) and `BLIND_CASES` (default 32) choose another suite; the example
+//! `cargo run --release -p maglab-diagnose --example blind_suite -- SEED COUNT` prints one
+//! without asserting.
+mod blind;
+
+#[test]
+fn blind_suite_names_the_right_effect() {
+    let seed: u64 = std::env::var("BLIND_SEED").map_or(1, |s| s.parse().expect("BLIND_SEED"));
+    let count: usize = std::env::var("BLIND_CASES").map_or(32, |s| s.parse().expect("BLIND_CASES"));
+    let started = std::time::Instant::now();
+    let outcomes = blind::run_suite(seed, count, true);
+    let matrix = blind::confusion_matrix(&outcomes);
+    println!("\nblind suite, seed {seed}:\n{matrix}");
+    let mut seconds: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
+    seconds.sort_by(f64::total_cmp);
+    println!(
+        "diagnosis time per case: median {:.1} s, max {:.1} s; suite {:.0} s",
+        seconds[seconds.len() / 2],
+        seconds[seconds.len() - 1],
+        started.elapsed().as_secs_f64()
+    );
+    // Every case's gaps lie in the drawn 5–30 % band (or the case is noise only).
+    for o in &outcomes {
+        for (g, e) in o.case.gaps.iter().zip(&o.case.effects) {
+            assert!(
+                (0.04..=0.32).contains(g),
+                "case {} ({}): gap {:.1} % of {} outside 5–30 %",
+                o.case.seed,
+                o.case.kind.label(),
+                100.0 * g,
+                e.spec.name
+            );
+        }
+    }
+    let correct = outcomes.iter().filter(|o| o.correct).count();
+    // The goal (issue 9) is 90 %; measured on seed 1: 28/32 and 29/32 on the last two plant
+    // revisions. This guards against a regression below 85 % until the goal is reached.
+    assert!(
+        100 * correct >= 85 * outcomes.len(),
+        "{correct}/{} correct, below 85 %",
+        outcomes.len()
+    );
+}

@@ -1,0 +1,170 @@
+//! The blind suite through identify → diagnose: each case of the diagnosis's blind suite
+//! (`maglab_plant::suite`, the same draws as `diagnose/tests/blind_suite.rs`) recorded with a
+//! quasi-static reversal sweep in front of its sines, written as a dataset folder, identified
+//! with `maglab identify` (the effect is in the data the masses and R_eddy, ξ, f0 come from),
+//! then diagnosed with `maglab diagnose --params identified.json`. The cases whose start states
+//! the suite leaves undocumented document only the sweep's.
+//!
+//! `IDENTIFIED_SEED` (default 1) and `IDENTIFIED_CASES` (default 4: the first 4 cases, a CI
+//! budget; 32 is the whole suite) choose the run; it asserts ≥ 90 % correct.
+//!
+//! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on the first 4 cases of
+//! seed 1: 2/4 correct; with an effect in the data the final R_eddy, ξ, f0 fit strays far from
+//! the plant (f0 510-733 Hz for a 392 Hz plant with eddy-current paths or ΔE), so the effect is
+//! absorbed into the identified file. Run it with
+//! `cargo test --release -p maglab --test identified_suite -- --ignored --nocapture`.
+use maglab_plant::bench::{forc_experiment, record_all, write_dataset};
+use maglab_plant::suite;
+use std::path::Path;
+use std::process::Command;
+
+fn maglab(args: &[&str]) -> Result<String, String> {
+    let out = Command::new(env!("CARGO_BIN_EXE_maglab"))
+        .args(args)
+        .output()
+        .map_err(|e| e.to_string())?;
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    if out.status.success() {
+        Ok(text)
+    } else {
+        Err(format!("maglab {args:?} failed:\n{text}"))
+    }
+}
+
+struct Outcome {
+    label: String,
+    expected: Vec<String>,
+    named: Vec<String>,
+    identified: String,
+    seconds: f64,
+}
+
+fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome {
+    let params = actuator_params::paper_defaults();
+    let case = suite::draw(
+        &params,
+        seed.wrapping_mul(1000).wrapping_add(index as u64),
+        kind,
+    )
+    .expect("the case is drawn");
+    let rate = case.settings.rate_hz;
+    let mut experiments = vec![forc_experiment(&params, 1.0, rate).expect("FORC sweep")];
+    experiments.extend(case.experiments.iter().cloned());
+    let recordings =
+        record_all(&params, &case.effects, &experiments, &case.settings).expect("plant runs");
+    let dir = root.join(format!("case{index:02}"));
+    let data = dir.join("data");
+    write_dataset(&data, &recordings).expect("dataset written");
+    if !case.documented {
+        // Only the identification sweep's start is documented.
+        let mut info = maglab_identify::dataset_info::DatasetInfo::load(&data)
+            .expect("dataset.json")
+            .expect("written");
+        info.files.retain(|name, _| name.starts_with("00_forc"));
+        info.write(&data).expect("dataset.json written");
+    }
+    let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
+    let identified = dir.join("identified.json");
+    let started = std::time::Instant::now();
+    maglab(&[
+        "identify",
+        &s(&data),
+        "-o",
+        &s(&identified),
+        "--plot-dir",
+        &s(&dir.join("plots")),
+    ])
+    .expect("identify runs");
+    let id: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&identified).expect("written"))
+            .expect("JSON");
+    let a = &id["actuator"];
+    let identified_text = format!(
+        "R {:.1} ohm, xi {:.3}, f0 {:.0} Hz",
+        a["eddy_resistance_ohm"].as_f64().unwrap_or(f64::NAN),
+        a["damping_ratio"].as_f64().unwrap_or(f64::NAN),
+        a["resonance_hz"].as_f64().unwrap_or(f64::NAN)
+    );
+    let report = dir.join("report");
+    maglab(&[
+        "diagnose",
+        "--params",
+        &s(&identified),
+        "-o",
+        &s(&report),
+        &s(&data),
+    ])
+    .expect("diagnose runs");
+    let d: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(report.join("diagnosis.json")).expect("written"),
+    )
+    .expect("JSON");
+    let mut named: Vec<String> = std::iter::once(d["verdict"].as_str().unwrap_or("?").to_string())
+        .chain(
+            d["additional_effects"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(|v| v.as_str().map(String::from)),
+        )
+        .collect();
+    named.sort();
+    Outcome {
+        label: case.describe(),
+        expected: case.kind.expected().iter().map(|s| s.to_string()).collect(),
+        named,
+        identified: identified_text,
+        seconds: started.elapsed().as_secs_f64(),
+    }
+}
+
+#[test]
+#[ignore = "fails today (2/4): identification absorbs the effects; issue 9"]
+fn identified_then_diagnosed_suite_names_the_right_effect() {
+    let seed: u64 =
+        std::env::var("IDENTIFIED_SEED").map_or(1, |s| s.parse().expect("IDENTIFIED_SEED"));
+    let count: usize =
+        std::env::var("IDENTIFIED_CASES").map_or(4, |s| s.parse().expect("IDENTIFIED_CASES"));
+    // The kinds of the whole 32-case suite, so that the first `count` cases are the suite's.
+    let kinds = suite::kinds(seed, count.max(32));
+    let root = tempfile::tempdir().expect("temp dir");
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let outcomes = std::sync::Mutex::new(Vec::new());
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if i >= count {
+                    break;
+                }
+                let o = run_case(seed, i, kinds[i].clone(), root.path());
+                println!(
+                    "{} {:2} {} -> {} (identified {}; {:.0} s)",
+                    if o.named == o.expected {
+                        "ok  "
+                    } else {
+                        "MISS"
+                    },
+                    i,
+                    o.label,
+                    o.named.join("+"),
+                    o.identified,
+                    o.seconds
+                );
+                outcomes.lock().expect("no panic").push(o);
+            });
+        }
+    });
+    let outcomes = outcomes.into_inner().expect("no panic");
+    let correct = outcomes.iter().filter(|o| o.named == o.expected).count();
+    println!(
+        "identify -> diagnose, seed {seed}: {correct}/{} correct",
+        outcomes.len()
+    );
+    assert!(10 * correct >= 9 * outcomes.len());
+}
