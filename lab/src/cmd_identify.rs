@@ -459,7 +459,7 @@ fn refine(
         params,
         &measurements,
         documented,
-        [pl.eddy_resistance_ohm, pl.damping_ratio, pl.resonance_hz],
+        &[[pl.eddy_resistance_ohm, pl.damping_ratio, pl.resonance_hz]],
         &IdentificationOptions::default(),
     )
     .map_err(|e| anyhow!("final fit of R_eddy, xi, f0: {e}"))?;
@@ -481,7 +481,9 @@ fn refine(
     let details = serde_json::json!({
         "method": "Levenberg-Marquardt on the displacement of every dynamic experiment with the \
                    model of maglab diagnose (core Preisach operator, backward-Euler eddy step with \
-                   Richardson extrapolation, f64 mechanics), started from the phase-lag result",
+                   Richardson extrapolation, f64 mechanics), started from the base file's values and the phase-lag result (the better), \
+                   fitted on the experiments up to fitted_up_to_hz (the higher ones are \
+                   predicted: unmodelled dynamics grow with frequency)",
         "estimated": {
             "current_between_samples": id.current_between_samples,
             "channel_skew_samples": id.channel_skew_samples,
@@ -493,6 +495,7 @@ fn refine(
         "noise_m": id.noise_m,
         "systematic_residual_m": id.systematic_m,
         "model_evaluations": id.evaluations,
+        "fitted_up_to_hz": id.fitted_up_to_hz,
     });
     fit.attach_refined(
         maglab_identify::dynamics::RefinedFit {

@@ -5,13 +5,13 @@
 //! then diagnosed with `maglab diagnose --params identified.json`. The cases whose start states
 //! the suite leaves undocumented document only the sweep's.
 //!
-//! `IDENTIFIED_SEED` (default 1) and `IDENTIFIED_CASES` (default 4: the first 4 cases, a CI
+//! `IDENTIFIED_DIR` keeps the outputs. `IDENTIFIED_SEED` (default 1) and `IDENTIFIED_CASES` (default 4: the first 4 cases, a CI
 //! budget; 32 is the whole suite) choose the run; it asserts ≥ 90 % correct.
 //!
 //! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on the first 4 cases of
-//! seed 1: 2/4 correct; with an effect in the data the final R_eddy, ξ, f0 fit strays far from
-//! the plant (f0 510-733 Hz for a 392 Hz plant with eddy-current paths or ΔE), so the effect is
-//! absorbed into the identified file. Run it with
+//! seed 1: 3/4 correct, but with an effect in the data the final R_eddy, ξ, f0 fit strays far
+//! from the plant (f0 320-763 Hz for a 392 Hz plant), so the effect is absorbed into the
+//! identified file. Run it with
 //! `cargo test --release -p maglab --test identified_suite -- --ignored --nocapture`.
 use maglab_plant::bench::{forc_experiment, record_all, write_dataset};
 use maglab_plant::suite;
@@ -70,7 +70,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
     let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
     let identified = dir.join("identified.json");
     let started = std::time::Instant::now();
-    maglab(&[
+    let log = maglab(&[
         "identify",
         &s(&data),
         "-o",
@@ -79,6 +79,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
         &s(&dir.join("plots")),
     ])
     .expect("identify runs");
+    std::fs::write(dir.join("identify.log"), log).expect("log written");
     let id: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&identified).expect("written"))
             .expect("JSON");
@@ -123,7 +124,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
 }
 
 #[test]
-#[ignore = "fails today (2/4): identification absorbs the effects; issue 9"]
+#[ignore = "fails today (3/4; identified constants far off): identification absorbs the effects; issue 9"]
 fn identified_then_diagnosed_suite_names_the_right_effect() {
     let seed: u64 =
         std::env::var("IDENTIFIED_SEED").map_or(1, |s| s.parse().expect("IDENTIFIED_SEED"));
@@ -131,7 +132,10 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
         std::env::var("IDENTIFIED_CASES").map_or(4, |s| s.parse().expect("IDENTIFIED_CASES"));
     // The kinds of the whole 32-case suite, so that the first `count` cases are the suite's.
     let kinds = suite::kinds(seed, count.max(32));
-    let root = tempfile::tempdir().expect("temp dir");
+    // `IDENTIFIED_DIR` keeps every case's dataset, identified file, log and report there.
+    let temp = tempfile::tempdir().expect("temp dir");
+    let root_path = std::env::var_os("IDENTIFIED_DIR")
+        .map_or_else(|| temp.path().to_path_buf(), std::path::PathBuf::from);
     let next = std::sync::atomic::AtomicUsize::new(0);
     let outcomes = std::sync::Mutex::new(Vec::new());
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -142,7 +146,7 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
                 if i >= count {
                     break;
                 }
-                let o = run_case(seed, i, kinds[i].clone(), root.path());
+                let o = run_case(seed, i, kinds[i].clone(), &root_path);
                 println!(
                     "{} {:2} {} -> {} (identified {}; {:.0} s)",
                     if o.named == o.expected {
