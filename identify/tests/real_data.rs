@@ -1,6 +1,6 @@
 //! Real measured hysteresis (not produced by any model here): fit on part of the data, predict
-//! the rest. Data: `../shared/data/real/` beside the repository (README there), or the folder in
-//! `MAGLAB_REAL_DATA`.
+//! the rest. Data: `identify/tests/data/real/` in the repository (README there: sources and
+//! licences), or the folder in `MAGLAB_REAL_DATA`.
 //!
 //! Bounds: the computation is deterministic (fixed data, fixed options, the QP solved to 1e-8), so
 //! the asserted bounds are the measured NRMSE (printed) plus a margin of about 10 % relative, which
@@ -15,13 +15,13 @@ use std::path::PathBuf;
 
 fn data_dir() -> PathBuf {
     let dir = std::env::var_os("MAGLAB_REAL_DATA").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real"),
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/real"),
         PathBuf::from,
     );
     assert!(
         dir.join("README.md").is_file(),
-        "real data not found at {}: clone the `shared` folder beside the repository \
-         (../shared/data/real from the repo root) or set MAGLAB_REAL_DATA",
+        "real data not found at {} (README.md missing): it ships in identify/tests/data/real, \
+         or set MAGLAB_REAL_DATA to another copy",
         dir.display()
     );
     dir
