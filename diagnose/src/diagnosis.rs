@@ -338,29 +338,6 @@ pub(crate) fn offset_of(items: &[(&[f64], &[f64], usize)]) -> f64 {
     }
 }
 
-/// Golden-section minimization of `f` on `[a, b]`.
-fn golden(mut a: f64, mut b: f64, iterations: usize, f: impl Fn(f64) -> f64) -> f64 {
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..iterations {
-        if fc < fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = f(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = f(d);
-        }
-    }
-    0.5 * (a + b)
-}
-
 /// Runs the diagnosis on `measurements` with the nominal parameters; `documented` is the
 /// dataset's `dataset.json` when it has one.
 pub fn diagnose(
@@ -953,7 +930,7 @@ pub(crate) fn estimate_nuisances(
                 .collect();
             pooled_rms(&items, offset_of(&items))
         };
-        let skew = golden(-1.0, 1.0, 24, rms_at);
+        let skew = maglab_identify::golden::golden_section_min(-1.0, 1.0, 24, rms_at);
         (rms_at(skew), skew)
     };
     let plan_fits: Vec<(f64, f64)> = start_sets

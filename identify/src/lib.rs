@@ -40,6 +40,7 @@ pub mod dynamics;
 pub mod excite;
 pub mod experiments;
 pub mod fit;
+pub mod golden;
 pub mod magnetization;
 pub mod memory;
 pub mod model;

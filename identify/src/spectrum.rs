@@ -178,30 +178,12 @@ pub fn refine_frequency(signal: &[f64], step_s: f64, tone: &Tone, harmonics: usi
         harmonic_fit(signal, step_s, f, 0..signal.len(), harmonics)
             .map_or(f64::INFINITY, |h| h.rms_residual)
     };
-    let ratio = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut lo, mut hi) = (
+    crate::golden::golden_section_min(
         (tone.frequency_hz - tone.bin_hz).max(0.5 * tone.bin_hz),
         tone.frequency_hz + tone.bin_hz,
-    );
-    let mut x1 = hi - ratio * (hi - lo);
-    let mut x2 = lo + ratio * (hi - lo);
-    let (mut c1, mut c2) = (cost(x1), cost(x2));
-    for _ in 0..40 {
-        if c1 <= c2 {
-            hi = x2;
-            x2 = x1;
-            c2 = c1;
-            x1 = hi - ratio * (hi - lo);
-            c1 = cost(x1);
-        } else {
-            lo = x1;
-            x1 = x2;
-            c1 = c2;
-            x2 = lo + ratio * (hi - lo);
-            c2 = cost(x2);
-        }
-    }
-    0.5 * (lo + hi)
+        40,
+        cost,
+    )
 }
 
 /// `θ` wrapped into `(-π/2, 3π/2]`: phase lags of causal, at most second-order-plus-delay

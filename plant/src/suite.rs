@@ -182,7 +182,6 @@ fn with_magnitude(e: &Effect, value: f64) -> Result<Effect, String> {
 /// previous one ended).
 pub struct GapRuns {
     runs: Vec<(Recording, bool)>,
-    settings: BenchSettings,
 }
 
 impl GapRuns {
@@ -227,10 +226,7 @@ impl GapRuns {
                 })
                 .collect::<Result<Vec<_>, String>>()?
         };
-        Ok(GapRuns {
-            runs,
-            settings: quiet,
-        })
+        Ok(GapRuns { runs })
     }
 }
 
@@ -274,33 +270,15 @@ pub fn gap_between(with: &GapRuns, without: &GapRuns) -> f64 {
         let n = n.max(1) as f64;
         (sum2 / n - (sum / n) * (sum / n)).max(0.0).sqrt()
     };
-    let _ = with.settings;
     // The common shift: the best for the lowest and highest frequencies together.
     let joint = |shift: f64| rms(shift, true).powi(2) + rms(shift, false).powi(2);
-    let (mut a, mut b) = (-NUISANCE_SHIFT_SAMPLES, NUISANCE_SHIFT_SAMPLES);
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (joint(c), joint(d));
-    for _ in 0..30 {
-        if fc < fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = joint(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = joint(d);
-        }
-    }
-    let shift = if joint(0.5 * (a + b)) < joint(0.0) {
-        0.5 * (a + b)
-    } else {
-        0.0
-    };
+    let best = maglab_identify::golden::golden_section_min(
+        -NUISANCE_SHIFT_SAMPLES,
+        NUISANCE_SHIFT_SAMPLES,
+        30,
+        joint,
+    );
+    let shift = if joint(best) < joint(0.0) { best } else { 0.0 };
     let span = |top: bool| {
         let (lo, hi) = without
             .runs
