@@ -69,6 +69,18 @@ pub struct Control {
     pub current_slew_limit_a_per_s: f32,
 }
 
+/// The coil and its amplifier (what bounds the current slew; see the parameter file's
+/// `amplifier` section).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Amplifier {
+    /// Highest voltage the amplifier can put across the coil, V.
+    pub compliance_voltage_v: f32,
+    /// Coil resistance, Ω.
+    pub coil_resistance_ohm: f32,
+    /// Coil inductance, H.
+    pub coil_inductance_h: f32,
+}
+
 /// Van der Pol desired-trajectory settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Trajectory {
@@ -91,6 +103,8 @@ pub struct ActuatorParameters {
     pub preisach: PreisachGrid,
     /// Control settings.
     pub control: Control,
+    /// Coil and amplifier.
+    pub amplifier: Amplifier,
     /// Desired-trajectory settings.
     pub trajectory: Trajectory,
 }
@@ -109,7 +123,7 @@ mod from_file {
     //! Run-time conversion of a parameter file (host tools), the same f64 → f32 narrowing
     //! `build.rs` applies when it bakes a file.
 
-    use super::{Actuator, ActuatorParameters, Control, PreisachGrid, Trajectory};
+    use super::{Actuator, ActuatorParameters, Amplifier, Control, PreisachGrid, Trajectory};
     use crate::preisach::CELL_COUNT;
     use actuator_params::{ActuatorParams, ParamsError};
     use std::format;
@@ -182,6 +196,11 @@ mod from_file {
                     sample_rate_hz: c.sample_rate_hz as f32,
                     current_limit_a: c.current_limit_a as f32,
                     current_slew_limit_a_per_s: c.current_slew_limit_a_per_s as f32,
+                },
+                amplifier: Amplifier {
+                    compliance_voltage_v: file.amplifier.compliance_voltage_v as f32,
+                    coil_resistance_ohm: file.amplifier.coil_resistance_ohm as f32,
+                    coil_inductance_h: file.amplifier.coil_inductance_h as f32,
                 },
                 trajectory: Trajectory {
                     van_der_pol_mu: t.van_der_pol_mu as f32,

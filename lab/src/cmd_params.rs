@@ -121,6 +121,14 @@ fn check(path: &Path) -> Result<()> {
         "  control      {} Hz, |I| <= {} A, |dI/dt| <= {} A/s",
         c.sample_rate_hz, c.current_limit_a, c.current_slew_limit_a_per_s
     );
+    let amp = &file.amplifier;
+    println!(
+        "  amplifier    {} V compliance, coil {} Ω, {} mH: slew at the limit <= {:.0} A/s",
+        amp.compliance_voltage_v,
+        amp.coil_resistance_ohm,
+        amp.coil_inductance_h * 1e3,
+        amp.max_slew_a_per_s(c.current_limit_a)
+    );
     println!(
         "  trajectory   Van der Pol μ = {}, scale {} Hz, band [{:.2}, {:.2}] µm",
         t.van_der_pol_mu,

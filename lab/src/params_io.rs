@@ -84,6 +84,11 @@ pub fn widen(p: &ActuatorParameters) -> ActuatorParams {
     file.control.sample_rate_hz = p.control.sample_rate_hz as f64;
     file.control.current_limit_a = p.control.current_limit_a as f64;
     file.control.current_slew_limit_a_per_s = p.control.current_slew_limit_a_per_s as f64;
+    file.amplifier = actuator_params::Amplifier {
+        compliance_voltage_v: p.amplifier.compliance_voltage_v as f64,
+        coil_resistance_ohm: p.amplifier.coil_resistance_ohm as f64,
+        coil_inductance_h: p.amplifier.coil_inductance_h as f64,
+    };
     file.trajectory.van_der_pol_mu = p.trajectory.van_der_pol_mu as f64;
     file.trajectory.frequency_scale_hz = p.trajectory.frequency_scale_hz as f64;
     file.trajectory.displacement_min_m = p.trajectory.displacement_min_m as f64;

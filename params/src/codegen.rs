@@ -79,6 +79,18 @@ pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
         let _ = writeln!(out, "        {name}: {},", lit(v));
     }
     let _ = writeln!(out, "    }},");
+    let _ = writeln!(out, "    amplifier: Amplifier {{");
+    for (name, v) in [
+        (
+            "compliance_voltage_v",
+            params.amplifier.compliance_voltage_v,
+        ),
+        ("coil_resistance_ohm", params.amplifier.coil_resistance_ohm),
+        ("coil_inductance_h", params.amplifier.coil_inductance_h),
+    ] {
+        let _ = writeln!(out, "        {name}: {},", lit(v));
+    }
+    let _ = writeln!(out, "    }},");
     let _ = writeln!(out, "    trajectory: Trajectory {{");
     for (name, v) in [
         ("van_der_pol_mu", t.van_der_pol_mu),

@@ -28,6 +28,9 @@ pub struct ActuatorParams {
     pub preisach: Preisach,
     /// Control-loop settings.
     pub control: Control,
+    /// The coil's electrical constants and the amplifier driving it: they bound the current slew
+    /// rate the controller may command.
+    pub amplifier: Amplifier,
     /// Desired-trajectory generator (Van der Pol oscillator, paper Section 5).
     pub trajectory: Trajectory,
     /// Where these numbers come from. Free-form for tools; `source` is required.
@@ -84,6 +87,32 @@ pub struct Control {
     pub current_limit_a: f64,
     /// Largest change of the current command per second, A/s.
     pub current_slew_limit_a_per_s: f64,
+}
+
+/// The coil and its current amplifier. A transconductance amplifier can force the coil current
+/// to change only as fast as its output voltage allows: `L di/dt = V − R i` (back-EMF of the rod
+/// neglected), so at the current limit `I_max` the fastest guaranteed slew is
+/// `(V_compliance − R_coil I_max) / L_coil`. A command that slews faster is not followed (the
+/// amplifier saturates and the coil current lags the model), so `control.current_slew_limit_a_per_s`
+/// must not exceed it ([`Amplifier::max_slew_a_per_s`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Amplifier {
+    /// Highest voltage the amplifier can put across the coil (its supply minus its dropout), V.
+    pub compliance_voltage_v: f64,
+    /// DC resistance of the coil (hot, at the highest expected temperature), Ω.
+    pub coil_resistance_ohm: f64,
+    /// Inductance of the coil with the rod inside, H.
+    pub coil_inductance_h: f64,
+}
+
+impl Amplifier {
+    /// Fastest current slew the amplifier guarantees at `current_limit_a`, A/s:
+    /// `(V_compliance − R_coil I_max) / L_coil` (negative when it cannot even hold `I_max`).
+    pub fn max_slew_a_per_s(&self, current_limit_a: f64) -> f64 {
+        (self.compliance_voltage_v - self.coil_resistance_ohm * current_limit_a)
+            / self.coil_inductance_h
+    }
 }
 
 /// Desired-trajectory generator: a Van der Pol oscillator `x'' - μ (1 - x²) x' + x = 0` in scaled
@@ -242,6 +271,18 @@ impl ActuatorParams {
                 "trajectory.frequency_scale_hz",
                 self.trajectory.frequency_scale_hz,
             ),
+            (
+                "amplifier.compliance_voltage_v",
+                self.amplifier.compliance_voltage_v,
+            ),
+            (
+                "amplifier.coil_resistance_ohm",
+                self.amplifier.coil_resistance_ohm,
+            ),
+            (
+                "amplifier.coil_inductance_h",
+                self.amplifier.coil_inductance_h,
+            ),
         ];
         for (field, value) in positive {
             check_finite(field, value).map_err(|r| err(field, r))?;
@@ -289,6 +330,33 @@ impl ActuatorParams {
                 format!(
                     "the band [{}, {}] m must lie inside the actuator's stroke [0, {stroke_m:.4e}] m (l_m λ_s)",
                     t.displacement_min_m, t.displacement_max_m
+                ),
+            ));
+        }
+        let amp = &self.amplifier;
+        let limit_a = self.control.current_limit_a;
+        let holding_v = amp.coil_resistance_ohm * limit_a;
+        if amp.compliance_voltage_v <= holding_v {
+            return Err(err(
+                "amplifier.compliance_voltage_v",
+                format!(
+                    "{} V cannot drive control.current_limit_a = {limit_a} A through the coil's {} ohm \
+                     (needs more than R I_max = {holding_v} V)",
+                    amp.compliance_voltage_v, amp.coil_resistance_ohm
+                ),
+            ));
+        }
+        let max_slew = amp.max_slew_a_per_s(limit_a);
+        if self.control.current_slew_limit_a_per_s > max_slew {
+            return Err(err(
+                "control.current_slew_limit_a_per_s",
+                format!(
+                    "{} A/s is faster than the amplifier can drive the coil at the current limit: \
+                     (V_compliance - R_coil I_max) / L_coil = ({} - {} x {limit_a}) / {} = {max_slew:.1} A/s",
+                    self.control.current_slew_limit_a_per_s,
+                    amp.compliance_voltage_v,
+                    amp.coil_resistance_ohm,
+                    amp.coil_inductance_h
                 ),
             ));
         }

@@ -48,12 +48,24 @@ fn every_case_is_tested_here() {
             "beyond_f32",
             "negative_weight",
             "negative_resistance",
+            "slew_beyond_amplifier",
+            "amplifier_cannot_hold_current_limit",
             "wrong_number_of_weights",
             "h_min_not_below_h_max",
             "levels_inconsistent_with_weights",
             "weights_for_another_level_count",
         ]
     );
+}
+
+#[test]
+fn slew_beyond_amplifier() {
+    check("slew_beyond_amplifier");
+}
+
+#[test]
+fn amplifier_cannot_hold_current_limit() {
+    check("amplifier_cannot_hold_current_limit");
 }
 
 #[test]

@@ -4,9 +4,14 @@
 //! default) and runs one control step — Van der Pol trajectory → dynamic inverse → output limiter
 //! — with the same `magctl::inverse::ControlLoop` as the QEMU firmware and the host, then writes
 //! the current command to the SPI DAC (`magctl::output::SpiDac` over embedded-hal, SPI1 + PB6
-//! chip select; wiring in `magctl::board::nucleo_f446re`). Thread mode logs a status line over
-//! RTT (defmt) once per second of control time: interrupts run, cycles per interrupt (DWT cycle
-//! counter, min / max), overruns, limiter and fault counters.
+//! chip select; wiring in `magctl::board::nucleo_f446re`), then feeds the independent watchdog.
+//! Thread mode logs a status line over RTT (defmt) once per second of control time: interrupts
+//! run, cycles per interrupt (DWT cycle counter, min / max), overruns, limiter and fault
+//! counters, SPI timeouts, staircase merges.
+//!
+//! Start-up (`docs/safety.md`): the DAC powers up at 0 A; the first thing `main` does after the
+//! clocks is write 0 A again (a reset does not reset the DAC), then it ramps to the controller's
+//! initial current at the slew limit, starts the watchdog and hands the state to the interrupt.
 //!
 //! Flash and run with probe-rs (`probe-rs run --chip STM32F446RETx <elf>`, see README); the
 //! fatal paths (panic, HardFault, unexpected interrupt) command 0 A and halt at a breakpoint
@@ -25,12 +30,13 @@ fn main() {
 
 #[cfg(target_os = "none")]
 mod firmware {
-    use core::ptr::addr_of_mut;
     use core::sync::atomic::{AtomicU32, Ordering};
     use cortex_m::peripheral::DWT;
     use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
+    use magctl::board::handoff::HandOff;
     use magctl::board::nucleo_f446re::spi::{ChipSelect, Spi1};
     use magctl::board::nucleo_f446re::timer::ControlTimer;
+    use magctl::board::nucleo_f446re::watchdog::{self, Watchdog};
     use magctl::board::nucleo_f446re::{clocks, rtt, spi};
     use magctl::inverse::{CommandFlags, ControlLoop, InverseKind, LoopState};
     use magctl::output::{CurrentOutput, DacScale, SpiDac};
@@ -43,6 +49,13 @@ mod firmware {
     /// gives the Figure 8 baseline).
     const INVERSE: InverseKind = InverseKind::Dynamic;
 
+    /// Consecutive DAC writes that may time out before the interrupt stops feeding the
+    /// watchdog (1 ms at 10 kHz): a DAC that cannot be written leaves the coil at its last
+    /// current, so the chip resets into the 0 A start-up instead.
+    const DAC_TIMEOUTS_BEFORE_RESET: u32 = 10;
+    /// Bound on the start-up ramp's steps (0.1 s at 10 kHz).
+    const MAX_RAMP_STEPS: u32 = 1_000;
+
     type Dac = SpiDac<ExclusiveDevice<Spi1, ChipSelect, NoDelay>>;
 
     struct App {
@@ -50,16 +63,21 @@ mod firmware {
         state: LoopState<CAPACITY>,
         dac: Dac,
         timer: ControlTimer,
+        watchdog: Watchdog,
+        consecutive_dac_timeouts: u32,
     }
 
-    static mut APP: Option<App> = None;
+    /// The interrupt's state, handed over by `main` before TIM2 is unmasked.
+    static APP: HandOff<App> = HandOff::new();
 
     /// Interrupts run.
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// Interrupts that ended after the next timer update was already pending.
     static OVERRUNS: AtomicU32 = AtomicU32::new(0);
-    /// Failed DAC writes (SPI error).
-    static DAC_ERRORS: AtomicU32 = AtomicU32::new(0);
+    /// DAC writes that timed out (SPI controller not ready within its poll bound).
+    static SPI_TIMEOUTS: AtomicU32 = AtomicU32::new(0);
+    /// Staircase merges of the controller's Preisach memory (mirrored each interrupt).
+    static MERGES: AtomicU32 = AtomicU32::new(0);
     /// Fewest / most core cycles spent in one interrupt (DWT).
     static MIN_CYCLES: AtomicU32 = AtomicU32::new(u32::MAX);
     static MAX_CYCLES: AtomicU32 = AtomicU32::new(0);
@@ -80,20 +98,32 @@ mod firmware {
     /// again; counted ([`OVERRUNS`], logged every second). The pending interrupt then runs at
     /// once (late, no step skipped).
     /// **Work**: one `ControlLoop` tick (the QEMU run measures ≤ 1,500 instructions for it plus
-    /// the DAC frame), one 24-bit SPI frame (2.1 µs at 11.25 MHz), counter updates. No allocation,
-    /// no logging, no panic path (link-time proof with `--features panic-never`).
+    /// the DAC frame), one 24-bit SPI frame (2.1 µs at 11.25 MHz; every status wait bounded by
+    /// `polled_spi::MAX_STATUS_POLLS`, a timeout is counted), the watchdog feed, counter updates.
+    /// No allocation, no logging, no unbounded wait, no panic path (link-time proof with
+    /// `--features panic-never`).
+    /// **Watchdog**: fed at the end of every interrupt unless the DAC has timed out
+    /// [`DAC_TIMEOUTS_BEFORE_RESET`] times in a row; a stalled or starved interrupt resets the
+    /// chip within `watchdog::TIMEOUT_MAX_MS`.
     #[interrupt]
     fn TIM2() {
         let entry = DWT::cycle_count();
-        let app = match unsafe { (*addr_of_mut!(APP)).as_mut() } {
-            Some(app) => app,
-            None => return,
+        // SAFETY: this interrupt is APP's only user once TIM2 is unmasked.
+        let Some(app) = (unsafe { APP.get_mut() }) else {
+            return;
         };
         app.timer.clear();
         let out = app.control.tick(INVERSE, &mut app.state);
         if app.dac.write_current(out.current_a).is_err() {
-            DAC_ERRORS.fetch_add(1, Ordering::Relaxed);
+            SPI_TIMEOUTS.fetch_add(1, Ordering::Relaxed);
+            app.consecutive_dac_timeouts = app.consecutive_dac_timeouts.saturating_add(1);
+        } else {
+            app.consecutive_dac_timeouts = 0;
         }
+        if app.consecutive_dac_timeouts < DAC_TIMEOUTS_BEFORE_RESET {
+            app.watchdog.feed();
+        }
+        MERGES.store(app.state.merges(), Ordering::Relaxed);
         #[cfg(feature = "panic-never-canary")]
         {
             // Negative control of the link-time proof: a bounds check the optimizer cannot remove.
@@ -138,8 +168,21 @@ mod firmware {
         clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH);
         cp.DCB.enable_trace();
         cp.DWT.enable_cycle_counter();
-
         let p = &BAKED_PARAMETERS;
+        // 0 A before anything else: the DAC keeps its code through an MCU reset.
+        let Some(scale) = DacScale::new(p.control.current_limit_a) else {
+            halt("invalid control.current_limit_a")
+        };
+        let (spi, cs) = spi::init(&dp.RCC);
+        let Ok(device) = ExclusiveDevice::new_no_delay(spi, cs);
+        let mut dac = SpiDac::new(device, scale);
+        if dac.write_current(0.0).is_err() {
+            halt("the DAC cannot be written (SPI timeout)");
+        }
+        if watchdog::take_reset_was_watchdog(&dp.RCC) {
+            defmt::warn!("reset by the independent watchdog: the control loop had stalled");
+        }
+
         defmt::info!(
             "magctl firmware on NUCLEO-F446RE: {=u32} Hz core, control rate {=f32} Hz, Van der Pol mu {=f32}, {=f32} Hz scale",
             clocks::SYSCLK_HZ,
@@ -151,32 +194,47 @@ mod firmware {
             Ok(c) => c,
             Err(_) => halt("invalid control settings in the baked parameters"),
         };
-        let Some(scale) = DacScale::new(p.control.current_limit_a) else {
-            halt("invalid control.current_limit_a")
-        };
-
-        let (spi, cs) = spi::init(&dp.RCC);
-        let Ok(device) = ExclusiveDevice::new_no_delay(spi, cs);
-        let mut dac = SpiDac::new(device, scale);
         let state = control.init::<CAPACITY>(INVERSE);
-        // Start from the controller's initial current (the static current of the first sample).
-        if dac.write_current(state.core.last_current_a).is_err() {
-            halt("DAC write failed");
+        let rate_hz = p.control.sample_rate_hz as u32;
+        // Ramp from 0 A to the controller's initial current (the static current of the first
+        // sample) at the slew limit, one step per control period (at most
+        // I_max / (slew / rate) steps: 5 with the default file).
+        let step_a = p.control.current_slew_limit_a_per_s / p.control.sample_rate_hz;
+        let period_cycles = clocks::SYSCLK_HZ / rate_hz.max(1);
+        let target_a = state.core.last_current_a;
+        // Equal steps of at most `step_a`; `as u32` saturates (NaN gives 0 steps).
+        let steps = (libm::ceilf(target_a.abs() / step_a) as u32).min(MAX_RAMP_STEPS);
+        for k in 1..=steps {
+            let current_a = target_a * (k as f32 / steps as f32);
+            if dac.write_current(current_a).is_err() {
+                halt("the DAC cannot be written (SPI timeout)");
+            }
+            let start = DWT::cycle_count();
+            while DWT::cycle_count().wrapping_sub(start) < period_cycles {}
         }
 
-        let rate_hz = p.control.sample_rate_hz as u32;
         let Some(timer) = ControlTimer::new(&dp.RCC, rate_hz) else {
             halt("TIM2 cannot run at the control rate (must divide 90 MHz)")
         };
-        unsafe {
-            *addr_of_mut!(APP) = Some(App {
-                control,
-                state,
-                dac,
-                timer,
-            });
-            cortex_m::peripheral::NVIC::unmask(Interrupt::TIM2);
+        let (watchdog, configured) = Watchdog::start(&dp.DBGMCU);
+        if !configured {
+            defmt::warn!(
+                "watchdog prescaler/reload not applied: running with its 512 ms reset timeout"
+            );
         }
+        let app = App {
+            control,
+            state,
+            dac,
+            timer,
+            watchdog,
+            consecutive_dac_timeouts: 0,
+        };
+        if APP.give(app).is_err() {
+            halt("control state handed over twice");
+        }
+        // SAFETY: APP is published (release) before the interrupt can run.
+        unsafe { cortex_m::peripheral::NVIC::unmask(Interrupt::TIM2) };
 
         let mut next_report = rate_hz;
         loop {
@@ -185,7 +243,7 @@ mod firmware {
             if ticks >= next_report {
                 next_report = next_report.wrapping_add(rate_hz);
                 defmt::info!(
-                    "{=u32} interrupts; cycles/interrupt min {=u32} max {=u32}; overruns {=u32}; u clamped {=u32}, current limited {=u32}, slew limited {=u32}, faults {=u32}, DAC errors {=u32}, log bytes dropped {=u32}",
+                    "{=u32} interrupts; cycles/interrupt min {=u32} max {=u32}; overruns {=u32}; u clamped {=u32}, current limited {=u32}, slew limited {=u32}, faults {=u32}, SPI timeouts {=u32}, staircase merges {=u32}, log bytes dropped {=u32}",
                     ticks,
                     MIN_CYCLES.load(Ordering::Relaxed),
                     MAX_CYCLES.load(Ordering::Relaxed),
@@ -194,7 +252,8 @@ mod firmware {
                     FLAGGED[1].load(Ordering::Relaxed),
                     FLAGGED[2].load(Ordering::Relaxed),
                     FLAGGED[3].load(Ordering::Relaxed),
-                    DAC_ERRORS.load(Ordering::Relaxed),
+                    SPI_TIMEOUTS.load(Ordering::Relaxed),
+                    MERGES.load(Ordering::Relaxed),
                     rtt::DROPPED_BYTES.load(Ordering::Relaxed)
                 );
             }

@@ -2,14 +2,22 @@
 //!
 //! The CMSDK TIMER0 interrupt runs one control step (Van der Pol trajectory → inverse → limiter →
 //! SPI DAC) and streams a record per interrupt to the host (semihosting file
-//! `qemu_capture.bin`, layout in `magctl::board::mps2_an386::capture`). Three phases run in one
+//! `qemu_capture.bin`, layout in `magctl::board::mps2_an386::capture`). Four phases run in one
 //! QEMU process, each from a fresh controller state:
 //!
 //! 1. dynamic inverse, fast exact Preisach inverse — one second of control time;
 //! 2. static inverse, fast exact Preisach inverse — one second;
+//! 4. merge stress: dynamic inverse, fast exact Preisach inverse, driven by a decaying 250 Hz
+//!    oscillation (nested reversals: the 64-point staircase fills after 32 periods and every
+//!    later reversal forces a merge) — [`MERGE_TICKS`] interrupts; the desired motion is computed
+//!    after each interrupt's measurement window, so the count is the inverse, limiter, DAC frame
+//!    and merges (the trajectory step, measured in phase 1, is not in it);
 //! 3. dynamic inverse with the naive baseline (bisection over the 325-cell forward) —
 //!    [`NAIVE_TICKS`] interrupts (each costs ~10⁵ instructions; only its instruction count is
 //!    compared).
+//!
+//! Start-up puts 0 A on the coil first (the DAC powers up there; this rewrites it after a reset
+//! that left another code in the DAC), as on the real board (`docs/safety.md`).
 //!
 //! # Timing under QEMU
 //!
@@ -22,7 +30,8 @@
 //! with `sleep=off` idle virtual time costs no host time. On the real board (firmware-nucleo) the
 //! timer runs at the true control rate.
 //!
-//! Exit status: 0 after the three phases with no dropped record, no overrun and no fault;
+//! Exit status: 0 after the four phases with no dropped record, no overrun, no fault, no SPI
+//! timeout and at least one merge in the merge phase;
 //! 3 if a check failed; 101 panic, 102 HardFault, 103 unexpected interrupt (see
 //! `board::mps2_an386::panic`); 4-6 start-up failures. Fault injection for the tests:
 //! `-semihosting-config ...,arg=inject=panic` or `arg=inject=hardfault`.
@@ -43,11 +52,11 @@ pub use firmware::*;
 
 #[cfg(target_os = "none")]
 mod firmware {
-    use core::ptr::addr_of_mut;
     use core::sync::atomic::{AtomicBool, Ordering};
     use cortex_m::interrupt::InterruptNumber;
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
     use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
+    use magctl::board::handoff::HandOff;
     use magctl::board::mps2_an386::capture::{encode, Record, Ring};
     use magctl::board::mps2_an386::fpgaio::MiscPin;
     use magctl::board::mps2_an386::pl022::Pl022;
@@ -58,11 +67,20 @@ mod firmware {
     use magctl::model::DynamicModel;
     use magctl::output::{CurrentOutput, DacScale, SpiDac};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
+    use magctl::trajectory::DesiredMotion;
 
     /// Preisach memory capacity (reversal points) of the controller.
     const CAPACITY: usize = magctl::preisach::DEFAULT_CAPACITY;
     /// Interrupts of the naive phase.
     pub const NAIVE_TICKS: u32 = 1_000;
+    /// Interrupts of the merge-stress phase (0.4 s of control time: 100 periods at
+    /// [`MERGE_STRESS_HZ`], 200 nested reversals into a 64-point staircase).
+    pub const MERGE_TICKS: u32 = 4_000;
+    /// Frequency of the merge-stress oscillation, Hz.
+    pub const MERGE_STRESS_HZ: f32 = 250.0;
+    /// Its amplitude decays by this factor over the phase (so every reversal is nested in the
+    /// previous one).
+    pub const MERGE_STRESS_DECAY: f32 = 400.0;
     /// TIMER0 period in the fast phases, in instructions (≈ 5.5 × the 1,500-instruction goal).
     pub const FAST_BUDGET_INSTRUCTIONS: u32 = 8_192;
     /// TIMER0 period in the naive phase, in instructions.
@@ -76,7 +94,8 @@ mod firmware {
     const PHASE_DYNAMIC: u8 = 1;
     const PHASE_STATIC: u8 = 2;
     const PHASE_NAIVE: u8 = 3;
-    const PHASE_DONE: u8 = 4;
+    const PHASE_MERGE: u8 = 4;
+    const PHASE_DONE: u8 = 5;
 
     #[derive(Clone, Copy)]
     struct Timer0Irq;
@@ -101,11 +120,17 @@ mod firmware {
         timer1: CmsdkTimer,
         overruns: u32,
         faults: u32,
-        min_ticks: [u32; 4],
-        max_ticks: [u32; 4],
+        spi_timeouts: u32,
+        /// Merges at the end of the merge phase.
+        merges: u32,
+        /// Desired motion of the next merge-phase interrupt.
+        next_desired: DesiredMotion,
+        min_ticks: [u32; 5],
+        max_ticks: [u32; 5],
     }
 
-    static mut APP: Option<App> = None;
+    /// The interrupt's state, handed over by `main` before TIMER0 is unmasked.
+    static APP: HandOff<App> = HandOff::new();
     static RING: Ring = Ring::new();
     static DONE: AtomicBool = AtomicBool::new(false);
 
@@ -124,13 +149,13 @@ mod firmware {
     ///
     /// # Safety
     /// Called only by the hardware through the vector table; it is the only code touching `APP`
-    /// once the timer runs (thread mode reads it again only after `DONE`).
+    /// once the timer runs (thread mode reads it again only after `DONE` and masking TIMER0).
     #[unsafe(no_mangle)]
     pub unsafe extern "C" fn TIMER0() {
         let systick_entry = SYST::get_current();
-        let app = match unsafe { (*addr_of_mut!(APP)).as_mut() } {
-            Some(app) => app,
-            None => return,
+        // SAFETY: this interrupt is APP's only user while TIMER0 is unmasked.
+        let Some(app) = (unsafe { APP.get_mut() }) else {
+            return;
         };
         let timer1_entry = app.timer1.value();
         app.timer0.clear();
@@ -138,6 +163,11 @@ mod firmware {
             PHASE_DYNAMIC => app.control.tick(InverseKind::Dynamic, &mut app.fast),
             PHASE_STATIC => app.control.tick(InverseKind::Static, &mut app.fast),
             PHASE_NAIVE => app.control.tick_naive(InverseKind::Dynamic, &mut app.naive),
+            PHASE_MERGE => {
+                let desired = app.next_desired;
+                app.control
+                    .command_with_fast(InverseKind::Dynamic, &mut app.fast, &desired)
+            }
             _ => {
                 app.timer0.stop();
                 return;
@@ -145,7 +175,10 @@ mod firmware {
         };
         let code = match app.dac.write_current(out.current_a) {
             Ok(code) => code,
-            Err(_) => DacScale::MIDSCALE,
+            Err(_) => {
+                app.spi_timeouts = app.spi_timeouts.saturating_add(1);
+                DacScale::ZERO_CURRENT_CODE
+            }
         };
         #[cfg(feature = "panic-never-canary")]
         {
@@ -163,7 +196,7 @@ mod firmware {
         let coarse = timer1_entry.wrapping_sub(timer1_exit);
         let wraps = coarse.wrapping_sub(short).wrapping_add(1 << 23) >> 24;
         let ticks = short.wrapping_add(wraps << 24);
-        let slot = (app.phase & 3) as usize;
+        let slot = app.phase as usize;
         if let Some(m) = app.min_ticks.get_mut(slot) {
             *m = (*m).min(ticks);
         }
@@ -191,8 +224,31 @@ mod firmware {
             app.overruns.min(u16::MAX as u32) as u16,
         ));
         app.tick += 1;
+        if app.phase == PHASE_MERGE {
+            app.next_desired = merge_stress_motion(app.tick);
+        }
         if app.tick >= app.phase_ticks {
             next_phase(app);
+        }
+    }
+
+    /// The merge-stress desired motion at interrupt `tick`: `c + A e^(−t/τ) sin(ω t)` in the
+    /// trajectory's band, with its first two derivatives.
+    fn merge_stress_motion(tick: u32) -> DesiredMotion {
+        let t = &BAKED_PARAMETERS.trajectory;
+        let rate_hz = BAKED_PARAMETERS.control.sample_rate_hz;
+        let time_s = tick as f32 / rate_hz;
+        let tau_s = MERGE_TICKS as f32 / rate_hz / libm::logf(MERGE_STRESS_DECAY);
+        let omega = 2.0 * core::f32::consts::PI * MERGE_STRESS_HZ;
+        let centre_m = 0.5 * (t.displacement_min_m + t.displacement_max_m);
+        let amplitude_m =
+            0.45 * (t.displacement_max_m - t.displacement_min_m) * libm::expf(-time_s / tau_s);
+        let (sin, cos) = (libm::sinf(omega * time_s), libm::cosf(omega * time_s));
+        DesiredMotion {
+            displacement_m: centre_m + amplitude_m * sin,
+            velocity_m_per_s: amplitude_m * (omega * cos - sin / tau_s),
+            acceleration_m_per_s2: amplitude_m
+                * ((1.0 / (tau_s * tau_s) - omega * omega) * sin - 2.0 * omega / tau_s * cos),
         }
     }
 
@@ -206,6 +262,15 @@ mod firmware {
                     .start(budget_ticks(FAST_BUDGET_INSTRUCTIONS), true);
             }
             PHASE_STATIC => {
+                app.phase = PHASE_MERGE;
+                app.phase_ticks = MERGE_TICKS;
+                app.fast = app.control.init(InverseKind::Dynamic);
+                app.next_desired = merge_stress_motion(0);
+                app.timer0
+                    .start(budget_ticks(FAST_BUDGET_INSTRUCTIONS), true);
+            }
+            PHASE_MERGE => {
+                app.merges = app.fast.preisach.merges();
                 app.phase = PHASE_NAIVE;
                 app.phase_ticks = NAIVE_TICKS;
                 app.naive = app.control.init_naive(InverseKind::Dynamic);
@@ -345,6 +410,12 @@ mod firmware {
         let spi = unsafe { Pl022::new(SPI0_BASE) };
         let cs = unsafe { MiscPin::new(FPGAIO_BASE, 1) };
         let Ok(device) = ExclusiveDevice::new_no_delay(spi, cs);
+        let mut dac = SpiDac::new(device, scale);
+        // 0 A first, whatever the DAC held before this reset.
+        if dac.write_current(0.0).is_err() {
+            defmt::error!("the DAC cannot be written (SPI timeout)");
+            semihosting::exit(6)
+        }
         let fast_ticks = BAKED_PARAMETERS.control.sample_rate_hz as u32; // one second
         let app = App {
             control,
@@ -353,33 +424,36 @@ mod firmware {
             phase_ticks: fast_ticks,
             fast: control.init(InverseKind::Dynamic),
             naive: control.init_naive(InverseKind::Dynamic),
-            dac: SpiDac::new(device, scale),
+            dac,
             timer0: unsafe { CmsdkTimer::new(TIMER0_BASE) },
             timer1: unsafe { CmsdkTimer::new(TIMER1_BASE) },
             overruns: 0,
             faults: 0,
-            min_ticks: [u32::MAX; 4],
-            max_ticks: [0; 4],
+            spi_timeouts: 0,
+            merges: 0,
+            next_desired: merge_stress_motion(0),
+            min_ticks: [u32::MAX; 5],
+            max_ticks: [0; 5],
         };
         defmt::info!(
-            "trajectory: Van der Pol mu {=f32}, {=f32} Hz scale, peak x {=f32}; {=u32} + {=u32} + {=u32} interrupts",
+            "trajectory: Van der Pol mu {=f32}, {=f32} Hz scale, peak x {=f32}; {=u32} + {=u32} + {=u32} + {=u32} interrupts",
             BAKED_PARAMETERS.trajectory.van_der_pol_mu,
             BAKED_PARAMETERS.trajectory.frequency_scale_hz,
             app.control.trajectory().peak_x(),
             fast_ticks,
             fast_ticks,
+            MERGE_TICKS,
             NAIVE_TICKS
         );
-        unsafe {
-            let slot = &mut *addr_of_mut!(APP);
-            *slot = Some(app);
-            if let Some(app) = slot.as_mut() {
-                app.timer1.start(u32::MAX, false);
-                app.timer0
-                    .start(budget_ticks(FAST_BUDGET_INSTRUCTIONS), true);
-            }
-            NVIC::unmask(Timer0Irq);
+        let mut app = app;
+        app.timer1.start(u32::MAX, false);
+        app.timer0
+            .start(budget_ticks(FAST_BUDGET_INSTRUCTIONS), true);
+        if APP.give(app).is_err() {
+            semihosting::exit(4)
         }
+        // SAFETY: APP is published (release) before the interrupt can run.
+        unsafe { NVIC::unmask(Timer0Irq) };
 
         let mut chunk = [[0u8; 40]; 32];
         loop {
@@ -398,12 +472,17 @@ mod firmware {
         NVIC::mask(Timer0Irq);
         file.close();
         let dropped = RING.dropped.load(Ordering::Relaxed);
-        let app = match unsafe { (*addr_of_mut!(APP)).as_ref() } {
-            Some(app) => app,
-            None => semihosting::exit(4),
+        // SAFETY: TIMER0 is masked and stopped: thread mode is APP's only user now.
+        let Some(app) = (unsafe { APP.get_mut() }) else {
+            semihosting::exit(4)
         };
         let c = &app.fast.core.counters;
-        for (name, k) in [("dynamic", 1usize), ("static", 2), ("naive", 3)] {
+        for (name, k) in [
+            ("dynamic", 1usize),
+            ("static", 2),
+            ("merge", 4),
+            ("naive", 3),
+        ] {
             let lo = app.min_ticks.get(k).copied().unwrap_or(0);
             let hi = app.max_ticks.get(k).copied().unwrap_or(0);
             defmt::info!(
@@ -420,13 +499,24 @@ mod firmware {
             c.slew_limited
         );
         defmt::info!(
-            "overruns {=u32}, dropped records {=u32}, faults {=u32}, log bytes dropped {=u32}",
+            "merge phase: {=u32} merges in {=u32} interrupts (staircase capacity {=u32})",
+            app.merges,
+            MERGE_TICKS,
+            CAPACITY as u32
+        );
+        defmt::info!(
+            "overruns {=u32}, dropped records {=u32}, faults {=u32}, SPI timeouts {=u32}, log bytes dropped {=u32}",
             app.overruns,
             dropped,
             app.faults,
+            app.spi_timeouts,
             magctl::board::mps2_an386::logger::DROPPED_BYTES.load(Ordering::Relaxed)
         );
-        let ok = app.overruns == 0 && dropped == 0 && app.faults == 0;
+        let ok = app.overruns == 0
+            && dropped == 0
+            && app.faults == 0
+            && app.spi_timeouts == 0
+            && app.merges > 0;
         semihosting::exit(if ok { 0 } else { 3 })
     }
 }

@@ -1,4 +1,6 @@
-//! Board support for the firmware (built only for `target_os = "none"`).
+//! Board support for the firmware. The two boards are behind their features (and only make sense
+//! for `target_os = "none"`); [`polled_spi`] and [`handoff`] are board-independent and tested on
+//! the host.
 //!
 //! * [`mps2_an386`] (feature `board-mps2-an386`): QEMU's `mps2-an386` (Cortex-M4F, 25 MHz):
 //!   CMSDK TIMER0 (IRQ 8) as the control timer, TIMER1 and SysTick for measurement, a PL022 SPI
@@ -9,8 +11,9 @@
 //!
 //! Linker files live in `boards/<board>/` (selected by `build.rs` from the feature).
 
-#[cfg(feature = "board-mps2-an386")]
+pub mod handoff;
+#[cfg(all(target_os = "none", feature = "board-mps2-an386"))]
 pub mod mps2_an386;
-#[cfg(feature = "board-nucleo-f446re")]
+#[cfg(all(target_os = "none", feature = "board-nucleo-f446re"))]
 pub mod nucleo_f446re;
 pub mod polled_spi;

@@ -72,6 +72,16 @@ pub struct LoopState<const N: usize> {
     pub preisach: PreisachState<N>,
 }
 
+impl<const N: usize> LoopState<N> {
+    /// Reversal-point pairs merged away because the staircase was full (each merge's output
+    /// change is bounded, see `preisach::staircase`): the firmware reports it beside the limiter
+    /// counters.
+    #[inline(always)]
+    pub fn merges(&self) -> u32 {
+        self.preisach.merges()
+    }
+}
+
 /// Full loop state with the naive Preisach memory.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NaiveLoopState<const N: usize> {
@@ -257,6 +267,23 @@ impl<'m> ControlLoop<'m> {
             state: &mut state.preisach,
         };
         self.tick_with(kind, &mut inv, &mut state.core)
+    }
+
+    /// Inverse and limiter with the fast exact inverse for a given desired motion (the trajectory
+    /// is not advanced): for a reference other than the Van der Pol generator, e.g. the QEMU
+    /// run's merge-stress phase.
+    #[inline]
+    pub fn command_with_fast<const N: usize>(
+        &self,
+        kind: InverseKind,
+        state: &mut LoopState<N>,
+        desired: &DesiredMotion,
+    ) -> TickOutput {
+        let mut inv = FastInverter {
+            measure: self.measure,
+            state: &mut state.preisach,
+        };
+        self.command_with(kind, &mut inv, &mut state.core, desired)
     }
 
     /// One interrupt with the naive baseline inverse (bisection over the cell-sum forward).

@@ -1,4 +1,9 @@
-//! Current (A) → 16-bit offset-binary DAC code, in fixed point.
+//! Current (A) → 16-bit two's-complement DAC code, in fixed point.
+//!
+//! Two's complement because the DAC (TI DAC8550) powers up, and stays until the first valid
+//! write, at mid-scale, which is code 0x0000 in its two's-complement coding: 0 A into the coil
+//! before the firmware has run a single instruction (its binary-coded twin DAC8551 powers up at
+//! zero-scale, i.e. −I_fs through a bipolar amplifier).
 
 use fixed::types::I1F15;
 
@@ -9,8 +14,8 @@ pub struct DacScale {
 }
 
 impl DacScale {
-    /// The code for 0 A.
-    pub const MIDSCALE: u16 = 0x8000;
+    /// The code for 0 A: the DAC's mid-scale, also its power-on value.
+    pub const ZERO_CURRENT_CODE: u16 = 0x0000;
 
     /// Conversion for an amplifier with full scale `±full_scale_a` (finite, > 0; anything else
     /// returns `None`).
@@ -25,8 +30,8 @@ impl DacScale {
     }
 
     /// The code for `current_a`: normalized to `[-1, 1)`, saturated at the ends, rounded to the
-    /// nearest Q1.15 step (1 LSB = full scale / 32768), sign bit flipped for offset binary. NaN
-    /// maps to midscale (0 A) — the controller never produces one (its limiter holds the last
+    /// nearest Q1.15 step (1 LSB = full scale / 32768); the Q1.15 bits are the two's-complement
+    /// code. NaN maps to [`DacScale::ZERO_CURRENT_CODE`] (0 A) — the controller never produces one (its limiter holds the last
     /// valid current), this only keeps the conversion total.
     #[inline]
     pub fn code(&self, current_a: f32) -> u16 {
@@ -35,15 +40,15 @@ impl DacScale {
         // for NaN here.
         let x = x.clamp(-1.0, 1.0);
         match I1F15::checked_from_num(x) {
-            Some(q) => (q.to_bits() as u16) ^ 0x8000,
-            None if x >= 1.0 => u16::MAX,
-            None => Self::MIDSCALE,
+            Some(q) => q.to_bits() as u16,
+            None if x >= 1.0 => i16::MAX as u16,
+            None => Self::ZERO_CURRENT_CODE,
         }
     }
 
     /// The current a code stands for, A (inverse of [`DacScale::code`] up to 1/2 LSB).
     pub fn current_a(&self, code: u16) -> f32 {
-        let q = I1F15::from_bits((code ^ 0x8000) as i16);
+        let q = I1F15::from_bits(code as i16);
         q.to_num::<f32>() / self.inv_full_scale_per_a
     }
 }
@@ -53,14 +58,16 @@ mod tests {
     use super::*;
 
     #[test]
-    fn codes_are_offset_binary_and_round_trip_within_half_an_lsb() {
+    fn codes_are_twos_complement_and_round_trip_within_half_an_lsb() {
         let s = DacScale::new(2.0).unwrap();
-        assert_eq!(s.code(0.0), 0x8000);
-        assert_eq!(s.code(-2.0), 0x0000);
-        assert_eq!(s.code(2.0), 0xFFFF); // +full scale saturates at the top code
-        assert_eq!(s.code(5.0), 0xFFFF);
-        assert_eq!(s.code(-5.0), 0x0000);
-        assert_eq!(s.code(f32::NAN), 0x8000);
+        assert_eq!(s.code(0.0), 0x0000);
+        assert_eq!(s.code(0.0), DacScale::ZERO_CURRENT_CODE);
+        assert_eq!(s.code(-2.0), 0x8000);
+        assert_eq!(s.code(2.0), 0x7FFF); // +full scale saturates at the top code
+        assert_eq!(s.code(5.0), 0x7FFF);
+        assert_eq!(s.code(-5.0), 0x8000);
+        assert_eq!(s.code(-1.0), 0xC000);
+        assert_eq!(s.code(f32::NAN), 0x0000);
         let lsb = 2.0 / 32768.0;
         let mut i = -1.99f32;
         while i < 1.99 {

@@ -1,6 +1,6 @@
 //! A 16-bit SPI DAC behind embedded-hal's `SpiDevice` (chip select handled by the device).
 //!
-//! Frame (TI DAC8551 and pin-compatible parts): 24 bits, MSB first — one control byte (`0x00`:
+//! Frame (TI DAC8550, two's-complement twin of the DAC8551, same frame): 24 bits, MSB first — one control byte (`0x00`:
 //! normal operation, power-down bits clear) followed by the 16-bit code, MSB first. SPI mode 1
 //! (CPOL = 0, CPHA = 1); up to 30 MHz.
 
@@ -82,13 +82,13 @@ mod tests {
             },
             DacScale::new(2.0).unwrap(),
         );
-        assert_eq!(dac.write_current(0.0), Ok(0x8000));
-        assert_eq!(dac.write_current(-2.0), Ok(0x0000));
-        assert_eq!(dac.write_current(1.0), Ok(0xC000));
+        assert_eq!(dac.write_current(0.0), Ok(0x0000));
+        assert_eq!(dac.write_current(-2.0), Ok(0x8000));
+        assert_eq!(dac.write_current(1.0), Ok(0x4000));
         let rec = dac.release();
         assert_eq!(rec.n, 3);
-        assert_eq!(rec.frames[0], [0x00, 0x80, 0x00]);
-        assert_eq!(rec.frames[1], [0x00, 0x00, 0x00]);
-        assert_eq!(rec.frames[2], [0x00, 0xC0, 0x00]);
+        assert_eq!(rec.frames[0], [0x00, 0x00, 0x00]);
+        assert_eq!(rec.frames[1], [0x00, 0x80, 0x00]);
+        assert_eq!(rec.frames[2], [0x00, 0x40, 0x00]);
     }
 }

@@ -97,6 +97,18 @@ pub fn cases() -> Vec<Case> {
             text: edit(|v| v["actuator"]["eddy_resistance_ohm"] = Value::from(-70.0)),
         },
         Case {
+            name: "slew_beyond_amplifier",
+            field: "control.current_slew_limit_a_per_s",
+            reason_contains: "faster than the amplifier can drive the coil",
+            text: edit(|v| v["control"]["current_slew_limit_a_per_s"] = Value::from(2.0e4)),
+        },
+        Case {
+            name: "amplifier_cannot_hold_current_limit",
+            field: "amplifier.compliance_voltage_v",
+            reason_contains: "cannot drive control.current_limit_a",
+            text: edit(|v| v["amplifier"]["compliance_voltage_v"] = Value::from(10.0)),
+        },
+        Case {
             name: "wrong_number_of_weights",
             field: "preisach.weights_a_per_m",
             reason_contains: "need 325 weights, the file has 324",

@@ -13,6 +13,10 @@ pub struct MiscPin {
     mask: u32,
 }
 
+// SAFETY: the pin owns its bit of a memory-mapped register (the constructor's contract); moving
+// it to the interrupt that uses it (through `HandOff`) moves that ownership.
+unsafe impl Send for MiscPin {}
+
 impl MiscPin {
     /// Bit `bit` of the MISC register of the FPGAIO block at `base`, driven high (deselected).
     ///

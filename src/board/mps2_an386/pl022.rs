@@ -2,7 +2,7 @@
 //! Registers: CR0 +0x00, CR1 +0x04, DR +0x08, SR +0x0C (TNF bit 1, RNE bit 2, BSY bit 4),
 //! CPSR +0x10.
 
-use crate::board::polled_spi::ByteExchange;
+use crate::board::polled_spi::{wait_until, ByteExchange, SpiTimeout};
 use core::ptr::{read_volatile, write_volatile};
 
 const CR0: usize = 0x00;
@@ -50,11 +50,11 @@ impl Pl022 {
 
 impl ByteExchange for Pl022 {
     #[inline(always)]
-    fn exchange(&mut self, byte: u8) -> u8 {
-        while self.sr() & SR_TNF == 0 {}
+    fn exchange(&mut self, byte: u8) -> Result<u8, SpiTimeout> {
+        wait_until(|| self.sr() & SR_TNF != 0)?;
         unsafe { write_volatile(self.reg(DR), byte as u32) };
-        while self.sr() & SR_RNE == 0 {}
-        unsafe { read_volatile(self.reg(DR)) as u8 }
+        wait_until(|| self.sr() & SR_RNE != 0)?;
+        Ok(unsafe { read_volatile(self.reg(DR)) as u8 })
     }
     fn busy(&self) -> bool {
         self.sr() & SR_BSY != 0

@@ -1,7 +1,8 @@
 //! Fatal paths of the NUCLEO firmware: panic, HardFault and unexpected interrupts.
 //!
-//! Each one (1) masks interrupts, so the control interrupt stops; (2) drives the DAC to
-//! mid-scale, i.e. 0 A into the coil ([`safe_output`], raw register writes that need no driver
+//! Each one (1) masks interrupts, so the control interrupt stops (and the watchdog is no longer
+//! fed: without a debugger it resets the chip within 15 ms, into the 0 A start-up); (2) drives
+//! the DAC to mid-scale, i.e. 0 A into the coil ([`safe_output`], raw register writes that need no driver
 //! state and cannot fail); (3) logs the cause over RTT; (4) halts at a breakpoint (`bkpt`): under
 //! `probe-rs run` the probe stops, prints the backtrace and exits non-zero; without a probe the
 //! breakpoint escalates to a (locked-up) HardFault and the core stays stopped with 0 A commanded.
@@ -12,8 +13,9 @@
 
 use stm32f4::stm32f446 as pac;
 
-/// Mid-scale frame of the DAC: control byte 0 (normal operation), code 0x8000 (0 A).
-const ZERO_CURRENT_FRAME: [u8; 3] = [0x00, 0x80, 0x00];
+/// Mid-scale frame of the DAC8550: control byte 0 (normal operation), two's-complement code
+/// 0x0000 (0 A, also its power-on value).
+const ZERO_CURRENT_FRAME: [u8; 3] = [0x00, 0x00, 0x00];
 use super::spi::CS_PIN;
 /// Bound on the busy-waits of [`safe_output`] (one byte at 11.25 MHz is ~130 core cycles at
 /// 180 MHz; this allows far more, then gives up instead of hanging). SR bits: TXE 1, BSY 7;

@@ -5,7 +5,7 @@
 //!
 //! Wiring of the DAC (Arduino header, SPI1): SCK = PA5 (D13, shared with the green LED LD2),
 //! MOSI = PA7 (D11), chip select = PB6 (D10, active low), MISO unused. The DAC (16-bit,
-//! DAC8551-style 24-bit frame, SPI mode 1, see `magctl::output::SpiDac`) drives the coil's
+//! DAC8550, two's complement, 24-bit frame, SPI mode 1, see `magctl::output::SpiDac`) drives the coil's
 //! transconductance amplifier (full scale `control.current_limit_a`).
 //!
 //! * [`clocks`]: HSE bypass → PLL → 180 MHz, register level.
@@ -14,6 +14,8 @@
 //! * [`fatal`]: panic, HardFault and unexpected-interrupt handlers: they mask interrupts (the
 //!   control interrupt stops), drive the DAC to mid-scale (0 A), log over RTT and halt at a
 //!   breakpoint (probe-rs reports it and exits non-zero).
+//! * [`watchdog`]: the independent watchdog, fed by the control interrupt (a stalled loop resets
+//!   the chip into the 0 A start-up state).
 //! * [`rtt`]: the defmt global logger over RTT (SEGGER RTT up-channel 0), panic-free.
 //!
 //! Everything is programmed at register level through the `stm32f4` PAC (not `stm32f4xx-hal`,
@@ -24,3 +26,4 @@ pub mod fatal;
 pub mod rtt;
 pub mod spi;
 pub mod timer;
+pub mod watchdog;

@@ -2,11 +2,11 @@
 //! DAC's chip select ([`OutputPin`]) — the board side of `magctl::output::SpiDac`, which wraps
 //! them in `embedded_hal_bus::spi::ExclusiveDevice` (RM0390 §26 SPI, §7 GPIO).
 //!
-//! SPI1 runs from APB2 (90 MHz) divided by 8: 11.25 MHz (the DAC8551 accepts up to 30 MHz), so a
+//! SPI1 runs from APB2 (90 MHz) divided by 8: 11.25 MHz (the DAC8550 accepts up to 30 MHz), so a
 //! 24-bit frame takes 2.1 µs. Every byte is exchanged (written, then its received byte read), so
 //! the receive side never overruns; MISO is not connected (PA6 stays a plain input).
 
-use crate::board::polled_spi::ByteExchange;
+use crate::board::polled_spi::{wait_until, ByteExchange, SpiTimeout};
 use core::convert::Infallible;
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use stm32f4::stm32f446 as pac;
@@ -86,6 +86,10 @@ pub fn init(rcc: &pac::RCC) -> (Spi1, ChipSelect) {
     (Spi1 { regs: spi }, ChipSelect { gpiob })
 }
 
+// SAFETY: the handle is the only user of its peripheral's registers (see its constructor);
+// moving it to the interrupt that uses it (through `HandOff`) moves that ownership.
+unsafe impl Send for Spi1 {}
+
 impl Spi1 {
     #[inline(always)]
     fn sr(&self) -> u16 {
@@ -95,11 +99,11 @@ impl Spi1 {
 
 impl ByteExchange for Spi1 {
     #[inline(always)]
-    fn exchange(&mut self, byte: u8) -> u8 {
-        while self.sr() & SR_TXE == 0 {}
+    fn exchange(&mut self, byte: u8) -> Result<u8, SpiTimeout> {
+        wait_until(|| self.sr() & SR_TXE != 0)?;
         self.regs.dr().write(|w| unsafe { w.bits(byte as u16) });
-        while self.sr() & SR_RXNE == 0 {}
-        self.regs.dr().read().bits() as u8
+        wait_until(|| self.sr() & SR_RXNE != 0)?;
+        Ok(self.regs.dr().read().bits() as u8)
     }
     fn busy(&self) -> bool {
         self.sr() & SR_BSY != 0
@@ -107,6 +111,10 @@ impl ByteExchange for Spi1 {
 }
 
 crate::impl_polled_spi_bus!(Spi1);
+
+// SAFETY: the handle is the only user of its peripheral's registers (see its constructor);
+// moving it to the interrupt that uses it (through `HandOff`) moves that ownership.
+unsafe impl Send for ChipSelect {}
 
 impl PinErrorType for ChipSelect {
     type Error = Infallible;

@@ -20,6 +20,10 @@ pub struct ControlTimer {
     regs: &'static pac::tim2::RegisterBlock,
 }
 
+// SAFETY: the handle is the only user of its peripheral's registers (see its constructor);
+// moving it to the interrupt that uses it (through `HandOff`) moves that ownership.
+unsafe impl Send for ControlTimer {}
+
 impl ControlTimer {
     /// Configures and starts TIM2 with its update interrupt enabled (the NVIC line is unmasked by
     /// the caller). `None` if `rate_hz` is not a whole divisor of the timer clock in range.
