@@ -10,6 +10,7 @@
 //!   output limits, and the control loop one timer interrupt runs.
 //! * [`params`]: the actuator parameters baked in at build time from the JSON file.
 //! * [`trajectory`]: the Van der Pol desired trajectory integrated on the chip.
+//! * [`sqrt`]: the square root, on the FPU's `VSQRT.F32` on the Cortex-M4F.
 //! * [`output`]: current command → DAC code (fixed point) → SPI DAC through embedded-hal.
 //! * [`board`]: QEMU mps2-an386 and NUCLEO-F446RE support (behind their `board-*` features,
 //!   firmware only), plus the board-independent pieces the host tests too: the bounded-wait SPI
@@ -30,4 +31,5 @@ pub mod model;
 pub mod output;
 pub mod params;
 pub mod preisach;
+pub mod sqrt;
 pub mod trajectory;

@@ -629,16 +629,16 @@ pub fn diagnose(
             .collect();
         // Two effects of different speed each show in their own bands (a slow drift at the
         // low frequencies, a lag at the top): the candidate that fits a band best joins too,
-        // even when its whole-dataset score ranks it lower.
+        // even when its whole-dataset score ranks it lower, and even when its single fit pinned
+        // a parameter (alone it may have stretched to cover the other effect's bands too; the
+        // pair must still pass with nothing pinned).
         let bands = ranked.first().map_or(0, |r| r.0.per_band.len());
         for b in 0..bands {
-            let best_in_band = (0..ranked.len())
-                .filter(|&i| ranked[i].0.pinned.is_empty())
-                .min_by(|&i, &j| {
-                    ranked[i].0.per_band[b]
-                        .after_m
-                        .total_cmp(&ranked[j].0.per_band[b].after_m)
-                });
+            let best_in_band = (0..ranked.len()).min_by(|&i, &j| {
+                ranked[i].0.per_band[b]
+                    .after_m
+                    .total_cmp(&ranked[j].0.per_band[b].after_m)
+            });
             if let Some(i) = best_in_band {
                 let helps =
                     ranked[i].0.per_band[b].after_m < 0.8 * ranked[i].0.per_band[b].before_m;
@@ -1184,7 +1184,7 @@ impl Scorer<'_> {
             };
             self.rms(&self.predict(&k), self.held_out)
         };
-        let pinned: Vec<String> = f.pinned().into_iter().map(String::from).collect();
+        let pinned: Vec<String> = f.pinned();
         let passes = |knocked_out: f64| {
             effects > 0
                 && pinned.is_empty()
@@ -1238,10 +1238,9 @@ impl Scorer<'_> {
         CandidateResult {
             effect: f.candidate.name(),
             parameters: f
-                .specs
-                .iter()
-                .zip(&f.values)
-                .map(|(s, v)| (s.name.to_string(), *v))
+                .report_names()
+                .into_iter()
+                .zip(f.values.iter().copied())
                 .collect(),
             training_rms_m: f.training_rms_m,
             held_out_rms_before_m: before,

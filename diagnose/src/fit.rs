@@ -190,15 +190,39 @@ impl Fitted {
         candidates::model_parameters(&self.candidate, &self.values)
     }
 
-    /// The effect parameters pinned at a physical limit of their range
-    /// ([`ParamSpec::pinned`]).
-    pub fn pinned(&self) -> Vec<&'static str> {
-        self.specs
+    /// The name of each parameter in the report: the shared constants as they are, an effect's
+    /// own parameters as they are for a single effect and as `effect.name` when the candidate
+    /// has several effects (two effects may share a parameter name, e.g. `natural_hz`).
+    pub fn report_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.specs[..4.min(self.specs.len())]
             .iter()
-            .zip(&self.values)
+            .map(|s| s.name.to_string())
+            .collect();
+        let several = self.candidate.effects.len() > 1;
+        let mut k = 4;
+        for &e in &self.candidate.effects {
+            let n = candidates::effect_parameter_count(e);
+            for s in self.specs.iter().skip(k).take(n) {
+                names.push(if several {
+                    format!("{}.{}", e.name(), s.name)
+                } else {
+                    s.name.to_string()
+                });
+            }
+            k += n;
+        }
+        names
+    }
+
+    /// The effect parameters pinned at a physical limit of their range
+    /// ([`ParamSpec::pinned`]), named as in [`Fitted::report_names`].
+    pub fn pinned(&self) -> Vec<String> {
+        self.report_names()
+            .into_iter()
+            .zip(self.specs.iter().zip(&self.values))
             .skip(4)
-            .filter(|(s, &v)| s.pinned(s.coordinate(v)))
-            .map(|(s, _)| s.name)
+            .filter(|(_, (s, &v))| s.pinned(s.coordinate(v)))
+            .map(|(name, _)| name)
             .collect()
     }
 

@@ -329,6 +329,62 @@ mod firmware {
         (min, (sum / STEPS as u64) as u32, max)
     }
 
+    /// Instructions per stage of the dynamic-inverse interrupt (trajectory step, inverse,
+    /// limiter, DAC frame): 2,000 control steps run stage by stage in thread mode from a fresh
+    /// state, each stage timed with SysTick minus the cost of the two reads. Returns
+    /// `[min, mean, max]` per stage. Out of line for the same reason as [`measure_model_step`].
+    #[inline(never)]
+    fn measure_stages(
+        read_overhead_ticks: u32,
+        control: &ControlLoop<'static>,
+        dac: &mut Dac,
+    ) -> [[u32; 3]; 4] {
+        let mut state: LoopState<CAPACITY> = control.init(InverseKind::Dynamic);
+        let mut stats = [[u32::MAX, 0, 0]; 4];
+        let mut sums = [0u64; 4];
+        const STEPS: u32 = 2000;
+        let instructions = |a: u32, b: u32| {
+            ((a.wrapping_sub(b) & 0x00FF_FFFF).saturating_sub(read_overhead_ticks) as f32 / 25.6)
+                as u32
+        };
+        for _ in 0..STEPS {
+            let t0 = SYST::get_current();
+            let desired = control.trajectory().step(&mut state.core.trajectory);
+            let t1 = SYST::get_current();
+            let mut inverter = magctl::inverse::FastInverter {
+                measure: &BAKED_MEASURE,
+                state: &mut state.preisach,
+            };
+            let raw = control.dynamic().raw_command(
+                &mut inverter,
+                &mut state.core.memory,
+                core::hint::black_box(&desired),
+            );
+            let t2 = SYST::get_current();
+            let (current_a, _) = control
+                .limiter()
+                .apply(&mut state.core.last_current_a, core::hint::black_box(&raw));
+            let t3 = SYST::get_current();
+            let _ = dac.write_current(core::hint::black_box(current_a));
+            let t4 = SYST::get_current();
+            for (k, (a, b)) in [(t0, t1), (t1, t2), (t2, t3), (t3, t4)]
+                .into_iter()
+                .enumerate()
+            {
+                let n = instructions(a, b);
+                if let (Some(st), Some(sum)) = (stats.get_mut(k), sums.get_mut(k)) {
+                    st[0] = st[0].min(n);
+                    st[2] = st[2].max(n);
+                    *sum += n as u64;
+                }
+            }
+        }
+        for (st, sum) in stats.iter_mut().zip(sums) {
+            st[1] = (sum / STEPS as u64) as u32;
+        }
+        stats
+    }
+
     fn inject_faults_from_command_line() {
         let mut buf = [0u8; 128];
         let n = semihosting::command_line(&mut buf);
@@ -414,6 +470,22 @@ mod firmware {
         // 0 A first, whatever the DAC held before this reset.
         if dac.write_current(0.0).is_err() {
             defmt::error!("the DAC cannot be written (SPI timeout)");
+            semihosting::exit(6)
+        }
+        let stages = measure_stages(read_overhead_ticks, &control, &mut dac);
+        for (name, st) in ["trajectory", "inverse", "limiter", "dac"]
+            .iter()
+            .zip(stages)
+        {
+            defmt::info!(
+                "stage {=str}: instructions min {=u32} mean {=u32} max {=u32}",
+                name,
+                st[0],
+                st[1],
+                st[2]
+            );
+        }
+        if dac.write_current(0.0).is_err() {
             semihosting::exit(6)
         }
         let fast_ticks = BAKED_PARAMETERS.control.sample_rate_hz as u32; // one second

@@ -46,6 +46,15 @@ pub trait ByteExchange {
     fn exchange(&mut self, byte: u8) -> Result<u8, SpiTimeout>;
     /// Whether the controller is still shifting.
     fn busy(&self) -> bool;
+    /// Sends `words`, discarding what comes back, and returns when the last bit is out. The
+    /// default exchanges byte by byte; a controller with a transmit FIFO or buffer overrides it
+    /// to keep the shifter busy (the DAC frame of every control interrupt goes through here).
+    fn write_all(&mut self, words: &[u8]) -> Result<(), SpiTimeout> {
+        for &w in words {
+            self.exchange(w)?;
+        }
+        Ok(())
+    }
 }
 
 /// Implements `embedded_hal::spi::{ErrorType, SpiBus<u8>}` for a [`ByteExchange`] type (a blanket
@@ -70,10 +79,7 @@ macro_rules! impl_polled_spi_bus {
             }
 
             fn write(&mut self, words: &[u8]) -> Result<(), $crate::board::polled_spi::SpiTimeout> {
-                for &w in words {
-                    $crate::board::polled_spi::ByteExchange::exchange(self, w)?;
-                }
-                Ok(())
+                $crate::board::polled_spi::ByteExchange::write_all(self, words)
             }
 
             fn transfer(

@@ -113,7 +113,7 @@ impl DynamicInverse {
         } else {
             (u, false)
         };
-        let m_target = libm::sqrtf(u);
+        let m_target = crate::sqrt::sqrt_f32(u);
         let inv = inverter.invert_to(m_target)?;
         let dh = inv.h_a_per_m - memory.h_a_per_m;
         let dm = inv.m_a_per_m - memory.m_a_per_m;

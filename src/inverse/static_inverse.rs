@@ -52,7 +52,7 @@ impl StaticInverse {
         }
         let ratio = displacement_m / self.stroke_m;
         let clamped_ratio = ratio.clamp(0.0, 1.0);
-        let m_target = self.saturation_magnetization_a_per_m * libm::sqrtf(clamped_ratio);
+        let m_target = self.saturation_magnetization_a_per_m * crate::sqrt::sqrt_f32(clamped_ratio);
         let solution = measure.invert(state, m_target)?;
         Ok(StaticInverseOutput {
             current_a: solution.h_a_per_m / self.coil_factor_per_m,

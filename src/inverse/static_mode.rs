@@ -41,7 +41,7 @@ impl StaticMode {
         }
         let ratio = desired.displacement_m / self.stroke_m;
         let clamped_ratio = ratio.clamp(0.0, 1.0);
-        let m_target = self.saturation_magnetization_a_per_m * libm::sqrtf(clamped_ratio);
+        let m_target = self.saturation_magnetization_a_per_m * crate::sqrt::sqrt_f32(clamped_ratio);
         let inv = inverter.invert_to(m_target)?;
         memory.h_a_per_m = inv.h_a_per_m;
         memory.m_a_per_m = inv.m_a_per_m;

@@ -246,7 +246,7 @@ impl PreisachMeasure {
 fn positive_root(a_quad: f32, b_lin: f32, q: f32, limit: f32) -> f32 {
     let q = q.max(0.0);
     let disc = (b_lin * b_lin + 4.0 * a_quad * q).max(0.0);
-    let denom = b_lin + libm::sqrtf(disc);
+    let denom = b_lin + crate::sqrt::sqrt_f32(disc);
     let sigma = if denom > 0.0 { 2.0 * q / denom } else { limit };
     if sigma.is_finite() {
         sigma.clamp(0.0, limit.max(0.0))

@@ -13,6 +13,8 @@ const CPSR: usize = 0x10;
 const SR_TNF: u32 = 1 << 1;
 const SR_RNE: u32 = 1 << 2;
 const SR_BSY: u32 = 1 << 4;
+/// Entries of each FIFO.
+const FIFO_DEPTH: usize = 8;
 
 /// A PL022 in master mode.
 pub struct Pl022 {
@@ -58,6 +60,24 @@ impl ByteExchange for Pl022 {
     }
     fn busy(&self) -> bool {
         self.sr() & SR_BSY != 0
+    }
+
+    /// Fills the 8-entry transmit FIFO (waiting for room only when it is full), waits until the
+    /// shifter is idle, then empties the receive FIFO (bounded by its depth).
+    #[inline(always)]
+    fn write_all(&mut self, words: &[u8]) -> Result<(), SpiTimeout> {
+        for &w in words {
+            wait_until(|| self.sr() & SR_TNF != 0)?;
+            unsafe { write_volatile(self.reg(DR), w as u32) };
+        }
+        wait_until(|| self.sr() & SR_BSY == 0)?;
+        for _ in 0..FIFO_DEPTH {
+            if self.sr() & SR_RNE == 0 {
+                break;
+            }
+            unsafe { read_volatile(self.reg(DR)) };
+        }
+        Ok(())
     }
 }
 

@@ -108,6 +108,22 @@ impl ByteExchange for Spi1 {
     fn busy(&self) -> bool {
         self.sr() & SR_BSY != 0
     }
+
+    /// Writes each byte as soon as the transmit buffer is empty (so the shifter never idles
+    /// between bytes), waits until the last bit is out, then reads DR and SR once: that clears
+    /// RXNE and the overrun flag the unread received bytes raised (RM0390 §26.3.10).
+    #[inline(always)]
+    fn write_all(&mut self, words: &[u8]) -> Result<(), SpiTimeout> {
+        for &w in words {
+            wait_until(|| self.sr() & SR_TXE != 0)?;
+            self.regs.dr().write(|r| unsafe { r.bits(w as u16) });
+        }
+        wait_until(|| self.sr() & SR_TXE != 0)?;
+        wait_until(|| self.sr() & SR_BSY == 0)?;
+        let _ = self.regs.dr().read().bits();
+        let _ = self.sr();
+        Ok(())
+    }
 }
 
 crate::impl_polled_spi_bus!(Spi1);
