@@ -13,6 +13,7 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use magctl::params::BAKED_PARAMETERS;
+use magctl::preisach::baselines::{everett_bisection_invert, RelayGrid};
 use magctl::preisach::naive::NaiveState;
 use magctl::preisach::{PreisachMeasure, PreisachState, DEMAGNETIZATION_HISTORY, LEVELS};
 use rand::rngs::Xoshiro256PlusPlus;
@@ -71,6 +72,15 @@ fn naive_demagnetized(measure: &PreisachMeasure) -> NaiveState {
         measure.naive_apply(&mut s, field(x));
     }
     s
+}
+
+fn relay_demagnetized(measure: &PreisachMeasure) -> RelayGrid<'_> {
+    let mut g = RelayGrid::new(measure);
+    let field = |x: f32| measure.h_min_a_per_m() + x * measure.cell_width_a_per_m();
+    for &x in DEMAGNETIZATION_HISTORY.iter() {
+        g.apply(field(x));
+    }
+    g
 }
 
 fn bench_forward(c: &mut Criterion) {
@@ -147,6 +157,32 @@ fn bench_inverse(c: &mut Criterion) {
                 BatchSize::SmallInput,
             )
         });
+        if a == 0.0 {
+            // What peers do (`magctl::preisach::baselines`): the plain inverse only.
+            group.bench_function("everett_bisection", |b| {
+                b.iter_batched_ref(
+                    || fast0.clone(),
+                    |s| {
+                        for &t in &r {
+                            black_box(everett_bisection_invert(&m, s, black_box(t)));
+                        }
+                    },
+                    BatchSize::SmallInput,
+                )
+            });
+            let relay0 = relay_demagnetized(&m);
+            group.bench_function("relay_grid_bisection", |b| {
+                b.iter_batched_ref(
+                    || relay0.clone(),
+                    |g| {
+                        for &t in &r {
+                            black_box(g.invert(black_box(t)));
+                        }
+                    },
+                    BatchSize::SmallInput,
+                )
+            });
+        }
         group.finish();
     }
 }

@@ -14,7 +14,15 @@
 //!    and merges (the trajectory step, measured in phase 1, is not in it);
 //! 3. dynamic inverse with the naive baseline (bisection over the 325-cell forward) —
 //!    [`NAIVE_TICKS`] interrupts (each costs ~10⁵ instructions; only its instruction count is
-//!    compared).
+//!    compared);
+//! 5. dynamic inverse with the Everett-bisection baseline (the exact operator, bisection on the
+//!    input, each trial one Everett forward evaluation on a copy of the memory; openCFS's
+//!    approach) — [`EVERETT_TICKS`] interrupts;
+//! 6. dynamic inverse with the relay-grid baseline (5,050 relays, one weighted sum per
+//!    evaluation, bisection; mavasbel/matlab-preisach-model's approach) — [`RELAY_TICKS`]
+//!    interrupts.
+//!
+//! Phases 3, 5 and 6 only give instruction counts (`preisach::baselines`).
 //!
 //! Start-up puts 0 A on the coil first (the DAC powers up there; this rewrites it after a reset
 //! that left another code in the DAC), as on the real board (`docs/safety.md`).
@@ -63,16 +71,26 @@ mod firmware {
     use magctl::board::mps2_an386::semihosting::{self, HostFile};
     use magctl::board::mps2_an386::timer::CmsdkTimer;
     use magctl::board::mps2_an386::{FPGAIO_BASE, SPI0_BASE, TIMER0_BASE, TIMER0_IRQ, TIMER1_BASE};
-    use magctl::inverse::{ControlLoop, InverseKind, LoopState, NaiveLoopState};
+    use magctl::inverse::{
+        ControlLoop, EverettBisectionInverter, InverseKind, LoopCore, LoopState, NaiveLoopState,
+        RelayGridInverter,
+    };
     use magctl::model::DynamicModel;
     use magctl::output::{CurrentOutput, DacScale, SpiDac};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
+    use magctl::preisach::baselines::RelayGrid;
     use magctl::trajectory::DesiredMotion;
 
     /// Preisach memory capacity (reversal points) of the controller.
     const CAPACITY: usize = magctl::preisach::DEFAULT_CAPACITY;
     /// Interrupts of the naive phase.
     pub const NAIVE_TICKS: u32 = 1_000;
+    /// Interrupts of the Everett-bisection phase.
+    pub const EVERETT_TICKS: u32 = 1_000;
+    /// Interrupts of the relay-grid phase (each costs ~10⁶ instructions).
+    pub const RELAY_TICKS: u32 = 200;
+    /// TIMER0 period in the relay-grid phase, in instructions.
+    pub const RELAY_BUDGET_INSTRUCTIONS: u32 = 1 << 23;
     /// Interrupts of the merge-stress phase (0.4 s of control time: 100 periods at
     /// [`MERGE_STRESS_HZ`], 200 nested reversals into a 64-point staircase).
     pub const MERGE_TICKS: u32 = 4_000;
@@ -95,7 +113,9 @@ mod firmware {
     const PHASE_STATIC: u8 = 2;
     const PHASE_NAIVE: u8 = 3;
     const PHASE_MERGE: u8 = 4;
-    const PHASE_DONE: u8 = 5;
+    const PHASE_EVERETT: u8 = 5;
+    const PHASE_RELAY: u8 = 6;
+    const PHASE_DONE: u8 = 7;
 
     #[derive(Clone, Copy)]
     struct Timer0Irq;
@@ -108,13 +128,17 @@ mod firmware {
 
     type Dac = SpiDac<ExclusiveDevice<Pl022, MiscPin, NoDelay>>;
 
+    /// `repr(C)` with the baselines' large states last: Thumb loads reach 4 KiB from a base
+    /// register, so the fields the controller's own path touches stay within one offset of the
+    /// state's address (a 5 KiB relay grid in front of them costs the dynamic phase ~55
+    /// instructions per interrupt in address arithmetic).
+    #[repr(C)]
     struct App {
         control: ControlLoop<'static>,
         phase: u8,
         tick: u32,
         phase_ticks: u32,
         fast: LoopState<CAPACITY>,
-        naive: NaiveLoopState<CAPACITY>,
         dac: Dac,
         timer0: CmsdkTimer,
         timer1: CmsdkTimer,
@@ -125,8 +149,11 @@ mod firmware {
         merges: u32,
         /// Desired motion of the next merge-phase interrupt.
         next_desired: DesiredMotion,
-        min_ticks: [u32; 5],
-        max_ticks: [u32; 5],
+        min_ticks: [u32; 7],
+        max_ticks: [u32; 7],
+        naive: NaiveLoopState<CAPACITY>,
+        relay_core: LoopCore,
+        relay: RelayGrid<'static>,
     }
 
     /// The interrupt's state, handed over by `main` before TIMER0 is unmasked.
@@ -168,6 +195,8 @@ mod firmware {
                 app.control
                     .command_with_fast(InverseKind::Dynamic, &mut app.fast, &desired)
             }
+            PHASE_EVERETT => everett_tick(app),
+            PHASE_RELAY => relay_tick(app),
             _ => {
                 app.timer0.stop();
                 return;
@@ -252,6 +281,28 @@ mod firmware {
         }
     }
 
+    /// One interrupt with the Everett-bisection baseline (out of line, so that the baselines do
+    /// not change how the compiler lays out the controller's own path).
+    #[inline(never)]
+    fn everett_tick(app: &mut App) -> magctl::inverse::TickOutput {
+        let mut inverter = EverettBisectionInverter {
+            measure: &BAKED_MEASURE,
+            state: &mut app.fast.preisach,
+        };
+        app.control
+            .tick_with(InverseKind::Dynamic, &mut inverter, &mut app.fast.core)
+    }
+
+    /// One interrupt with the relay-grid baseline (out of line, as above).
+    #[inline(never)]
+    fn relay_tick(app: &mut App) -> magctl::inverse::TickOutput {
+        let mut inverter = RelayGridInverter {
+            grid: &mut app.relay,
+        };
+        app.control
+            .tick_with(InverseKind::Dynamic, &mut inverter, &mut app.relay_core)
+    }
+
     fn next_phase(app: &mut App) {
         app.tick = 0;
         match app.phase {
@@ -276,6 +327,26 @@ mod firmware {
                 app.naive = app.control.init_naive(InverseKind::Dynamic);
                 app.timer0
                     .start(budget_ticks(NAIVE_BUDGET_INSTRUCTIONS), true);
+            }
+            PHASE_NAIVE => {
+                app.phase = PHASE_EVERETT;
+                app.phase_ticks = EVERETT_TICKS;
+                app.fast = app.control.init(InverseKind::Dynamic);
+                app.timer0
+                    .start(budget_ticks(NAIVE_BUDGET_INSTRUCTIONS), true);
+            }
+            PHASE_EVERETT => {
+                app.phase = PHASE_RELAY;
+                app.phase_ticks = RELAY_TICKS;
+                app.relay = RelayGrid::new(&BAKED_MEASURE);
+                app.relay_core = app.control.initial_core(
+                    InverseKind::Dynamic,
+                    &mut RelayGridInverter {
+                        grid: &mut app.relay,
+                    },
+                );
+                app.timer0
+                    .start(budget_ticks(RELAY_BUDGET_INSTRUCTIONS), true);
             }
             _ => {
                 app.phase = PHASE_DONE;
@@ -496,6 +567,8 @@ mod firmware {
             phase_ticks: fast_ticks,
             fast: control.init(InverseKind::Dynamic),
             naive: control.init_naive(InverseKind::Dynamic),
+            relay: RelayGrid::new(&BAKED_MEASURE),
+            relay_core: control.init::<CAPACITY>(InverseKind::Dynamic).core,
             dac,
             timer0: unsafe { CmsdkTimer::new(TIMER0_BASE) },
             timer1: unsafe { CmsdkTimer::new(TIMER1_BASE) },
@@ -504,18 +577,20 @@ mod firmware {
             spi_timeouts: 0,
             merges: 0,
             next_desired: merge_stress_motion(0),
-            min_ticks: [u32::MAX; 5],
-            max_ticks: [0; 5],
+            min_ticks: [u32::MAX; 7],
+            max_ticks: [0; 7],
         };
         defmt::info!(
-            "trajectory: Van der Pol mu {=f32}, {=f32} Hz scale, peak x {=f32}; {=u32} + {=u32} + {=u32} + {=u32} interrupts",
+            "trajectory: Van der Pol mu {=f32}, {=f32} Hz scale, peak x {=f32}; {=u32} + {=u32} + {=u32} + {=u32} + {=u32} + {=u32} interrupts",
             BAKED_PARAMETERS.trajectory.van_der_pol_mu,
             BAKED_PARAMETERS.trajectory.frequency_scale_hz,
             app.control.trajectory().peak_x(),
             fast_ticks,
             fast_ticks,
             MERGE_TICKS,
-            NAIVE_TICKS
+            NAIVE_TICKS,
+            EVERETT_TICKS,
+            RELAY_TICKS
         );
         let mut app = app;
         app.timer1.start(u32::MAX, false);
@@ -554,6 +629,8 @@ mod firmware {
             ("static", 2),
             ("merge", 4),
             ("naive", 3),
+            ("everett-bisection", 5),
+            ("relay-grid", 6),
         ] {
             let lo = app.min_ticks.get(k).copied().unwrap_or(0);
             let hi = app.max_ticks.get(k).copied().unwrap_or(0);

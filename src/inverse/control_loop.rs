@@ -149,7 +149,11 @@ impl<'m> ControlLoop<'m> {
     /// with `ȳ(t_0)`), and the held current is the static current `H_0 / c0` of that field.
     /// A plant simulation starts from the same memory ([`ControlLoop::initial_preisach`]) driven
     /// to `core.memory.h_a_per_m`.
-    fn initial_core<P: PreisachInverter>(&self, kind: InverseKind, inverter: &mut P) -> LoopCore {
+    pub fn initial_core<P: PreisachInverter>(
+        &self,
+        kind: InverseKind,
+        inverter: &mut P,
+    ) -> LoopCore {
         let trajectory = self.trajectory.start_state();
         let desired = self.trajectory.motion(&trajectory);
         let mut memory = InverseMemory::default();

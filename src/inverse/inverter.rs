@@ -3,6 +3,7 @@
 //! (bisection over a cell-by-cell forward, [`PreisachMeasure::naive_solve`]) used for the
 //! instruction-count comparison in the QEMU run.
 
+use crate::preisach::baselines::{everett_bisection_invert, RelayGrid};
 use crate::preisach::naive::NaiveState;
 use crate::preisach::{PreisachMeasure, PreisachState, Saturation, SolveError};
 
@@ -64,6 +65,51 @@ impl<const N: usize> PreisachInverter for NaiveInverter<'_, N> {
             h_a_per_m: h,
             m_a_per_m: m,
             saturated,
+        })
+    }
+}
+
+/// Baseline: the exact operator inverted by bisection, each trial a forward Everett evaluation
+/// on a copy of the memory (`preisach::baselines`, the openCFS approach).
+pub struct EverettBisectionInverter<'a, const N: usize> {
+    /// Coefficients.
+    pub measure: &'a PreisachMeasure,
+    /// Memory.
+    pub state: &'a mut PreisachState<N>,
+}
+
+impl<const N: usize> PreisachInverter for EverettBisectionInverter<'_, N> {
+    fn invert_to(&mut self, m_target_a_per_m: f32) -> Result<Inverted, SolveError> {
+        if !m_target_a_per_m.is_finite() {
+            return Err(SolveError::NonFinite);
+        }
+        let (h, m) = everett_bisection_invert(self.measure, self.state, m_target_a_per_m);
+        let saturation = self.measure.saturation_a_per_m();
+        Ok(Inverted {
+            h_a_per_m: h,
+            m_a_per_m: m,
+            saturated: m_target_a_per_m.abs() > saturation,
+        })
+    }
+}
+
+/// Baseline: a relay grid (one state per relay, one weighted sum per evaluation) inverted by
+/// bisection (`preisach::baselines`, the mavasbel/matlab-preisach-model approach).
+pub struct RelayGridInverter<'a, 'm> {
+    /// The relays and their states.
+    pub grid: &'a mut RelayGrid<'m>,
+}
+
+impl PreisachInverter for RelayGridInverter<'_, '_> {
+    fn invert_to(&mut self, m_target_a_per_m: f32) -> Result<Inverted, SolveError> {
+        if !m_target_a_per_m.is_finite() {
+            return Err(SolveError::NonFinite);
+        }
+        let (h, m) = self.grid.invert(m_target_a_per_m);
+        Ok(Inverted {
+            h_a_per_m: h,
+            m_a_per_m: m,
+            saturated: false,
         })
     }
 }

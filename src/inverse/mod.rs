@@ -20,7 +20,10 @@ pub use control_loop::{
     TickOutput,
 };
 pub use dynamic::DynamicInverse;
-pub use inverter::{FastInverter, Inverted, NaiveInverter, PreisachInverter};
+pub use inverter::{
+    EverettBisectionInverter, FastInverter, Inverted, NaiveInverter, PreisachInverter,
+    RelayGridInverter,
+};
 pub use limiter::{CommandFlags, LimiterError, OutputLimiter};
 pub use static_inverse::{StaticInverse, StaticInverseOutput};
 pub use static_mode::StaticMode;

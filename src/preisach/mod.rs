@@ -33,6 +33,7 @@
 //! [`PreisachMeasure::solve`] (`a·h + Γ(h) = r`, `a >= 0`) walk the pieces and solve one quadratic:
 //! exact up to f32 rounding, no bisection.
 
+pub mod baselines;
 mod everett;
 mod grid;
 pub mod naive;

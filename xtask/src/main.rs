@@ -8,7 +8,8 @@
 //!   core, the Markdown link check ([`doclinks`]), with a summary whose last line is `N passed, M failed`;
 //! * `demo` ([`demo`]): setup, then the host demo (`maglab loops`), the QEMU firmware run and the
 //!   tracking figures (`maglab track`) into `out/`;
-//! * `qemu` ([`qemu`]) and `nucleo` ([`nucleo`]): the firmware checks (also steps of `test`).
+//! * `qemu` ([`qemu`]) and `nucleo` ([`nucleo`]): the firmware checks (also steps of `test`);
+//! * `fuzz` ([`fuzz`]): the long cargo-fuzz runs (nightly); `test` replays their corpus.
 //!
 //! # Adding a command
 //! 1. Write `src/<name>.rs` with `pub fn run(ctx: &Ctx, args: &[String]) -> anyhow::Result<()>`
@@ -19,6 +20,7 @@
 
 mod demo;
 mod doclinks;
+mod fuzz;
 mod nucleo;
 mod qemu;
 mod setup;
@@ -60,6 +62,11 @@ const COMMANDS: &[Command] = &[
         name: "nucleo",
         about: "build the NUCLEO-F446RE firmware, report its sizes, prove it panic-free at link time",
         run: nucleo::run,
+    },
+    Command {
+        name: "fuzz",
+        about: "cargo-fuzz (nightly) on every fuzz target for 600 s each [--seconds N] [TARGET...]",
+        run: fuzz::run,
     },
     Command {
         name: "demo",

@@ -362,12 +362,17 @@ pub fn check(ctx: &Ctx) -> Result<String> {
             .collect::<Vec<_>>()
     };
     let (dynamic, stat, naive, merge) = (phase(1), phase(2), phase(3), phase(4));
+    let (everett, relay) = (phase(5), phase(6));
     ensure!(
         dynamic.len() as f64 >= rate && stat.len() as f64 >= rate,
         "less than 1 s of control time captured"
     );
     ensure!(!naive.is_empty(), "no naive-phase records");
     ensure!(!merge.is_empty(), "no merge-stress records");
+    ensure!(
+        !everett.is_empty() && !relay.is_empty(),
+        "no records of the peer baselines"
+    );
     let instr = |rs: &[Record]| {
         stats(
             rs.iter()
@@ -376,6 +381,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         )
     };
     let (d, s, n, m) = (instr(&dynamic), instr(&stat), instr(&naive), instr(&merge));
+    let (e, r) = (instr(&everett), instr(&relay));
     say!("instructions per interrupt (min / median / max):");
     say!(
         "  dynamic inverse, exact Preisach inverse: {:.0} / {:.0} / {:.0}  ({} interrupts)",
@@ -406,7 +412,31 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         naive.len()
     );
     say!(
-        "  naive / ours: median {:.0}x, worst case {:.0}x",
+        "  dynamic inverse, Everett + bisection (openCFS-style): {:.0} / {:.0} / {:.0}  ({} interrupts)",
+        e.0,
+        e.1,
+        e.2,
+        everett.len()
+    );
+    say!(
+        "  dynamic inverse, relay grid + bisection (5,050 relays): {:.0} / {:.0} / {:.0}  ({} interrupts)",
+        r.0,
+        r.1,
+        r.2,
+        relay.len()
+    );
+    say!(
+        "  Everett bisection / ours: median {:.1}x, worst case {:.1}x",
+        e.1 / d.1,
+        e.2 / d.2
+    );
+    say!(
+        "  relay grid / ours: median {:.0}x, worst case {:.0}x",
+        r.1 / d.1,
+        r.2 / d.2
+    );
+    say!(
+        "  naive (strawman) / ours: median {:.0}x, worst case {:.0}x",
         n.1 / d.1,
         n.2 / d.2
     );
@@ -435,8 +465,10 @@ pub fn check(ctx: &Ctx) -> Result<String> {
             match r.phase {
                 1 => "dynamic",
                 2 => "static",
+                3 => "naive",
                 4 => "merge",
-                _ => "naive",
+                5 => "everett_bisection",
+                _ => "relay_grid",
             },
             r.index,
             r.index as f64 / rate,
