@@ -66,7 +66,8 @@ pub struct Experiment<'a> {
     pub weights: Option<&'a [f64]>,
 }
 
-/// Runs the memory through an experiment and calls `row(t, x_normalized, fractions)` for every
+/// Runs the memory through an experiment and calls `row(t, x_normalized, fractions)` (`x` not
+/// clamped to the grid) for every
 /// sample `t` (after the input moved to sample `t`). Returns the number of samples whose input
 /// lay outside the grid (those saturate the memory: counted, not hidden).
 pub fn run_experiment(
@@ -107,7 +108,9 @@ pub fn run_experiment(
         }
         memory.move_to(x);
         fractions(&memory, &mut pieces, &mut f);
-        row(t, x.clamp(0.0, top), &f);
+        // Unclamped: the affine part continues beyond the grid (the memory saturates there), the
+        // same as `PreisachModel::predict` evaluates it.
+        row(t, x, &f);
     }
     outside
 }

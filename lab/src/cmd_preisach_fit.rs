@@ -38,16 +38,19 @@ pub struct FitArgs {
     /// Default: all rows.
     #[arg(long, value_name = "FILTER")]
     fit_rows: Option<String>,
-    /// Input range of the grid, LO..HI. Default: the data's range plus --margin on each side.
-    #[arg(long, value_name = "LO..HI")]
+    /// Input range of the grid, LO..HI (negative ends are fine: `--levels-range -1..166`).
+    /// Default: the data's range plus --margin on each side.
+    #[arg(long, value_name = "LO..HI", allow_hyphen_values = true)]
     levels_range: Option<String>,
     /// Margin added to the data range on each side, fraction of the range.
     #[arg(long, default_value_t = DEFAULT_RANGE_MARGIN)]
     margin: f64,
-    /// Initial memory of each experiment: negative-saturation, positive-saturation,
-    /// demagnetized (around the first input), periodic (the experiment is one period of a
-    /// periodic steady state).
-    #[arg(long, default_value = "demagnetized")]
+    /// Initial memory of each experiment: auto, negative-saturation, positive-saturation,
+    /// demagnetized (around the first input), demagnetized-at-zero, periodic (the experiment is
+    /// one period of a periodic steady state). `auto`: periodic when every experiment is a
+    /// closed loop (it ends where it started, in input and output, within 2 % of its ranges),
+    /// else demagnetized; the choice is printed.
+    #[arg(long, default_value = "auto")]
     initial: String,
     /// Smoothness weight λ_s (see maglab_identify::fit).
     #[arg(long, default_value_t = 1e-6)]
@@ -55,9 +58,13 @@ pub struct FitArgs {
     /// Ridge weight λ_r toward zero.
     #[arg(long, default_value_t = 0.0)]
     ridge: f64,
-    /// Fit an affine/reversible part offset + slope·input jointly.
-    #[arg(long)]
+    /// Fit an affine/reversible part offset + slope·input jointly (the default; real materials
+    /// have a reversible part and an output offset).
+    #[arg(long, conflicts_with = "no_affine")]
     affine: bool,
+    /// Fit the Preisach masses alone, without the affine part.
+    #[arg(long)]
+    no_affine: bool,
     /// Unexcited cells: regularized (set by smoothness/ridge) or zero.
     #[arg(long, default_value = "regularized")]
     unexcited: String,
@@ -85,9 +92,14 @@ pub struct PredictArgs {
     /// Output column (default: the model's).
     #[arg(long)]
     output_col: Option<String>,
-    /// Group column (runs of equal values are separate experiments).
-    #[arg(long)]
+    /// Group column (runs of equal values are separate experiments). Default: the model's
+    /// (the group column it was fitted with), so that each experiment starts from the model's
+    /// initial state.
+    #[arg(long, conflicts_with = "no_group")]
     group_col: Option<String>,
+    /// Score the whole file as one experiment even if the model was fitted with groups.
+    #[arg(long)]
+    no_group: bool,
     /// Rows that are scored: COL=V1,V2,... or COL=LO..HI. Default: all rows.
     #[arg(long, value_name = "FILTER")]
     score_rows: Option<String>,
@@ -137,11 +149,19 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     let options = FitOptions {
         smoothness: args.smoothness,
         ridge: args.ridge,
-        affine: args.affine,
+        affine: !args.no_affine,
         unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
         row_stride: args.row_stride,
     };
-    let initial = InitialState::parse(&args.initial).map_err(|e| anyhow!(e))?;
+    let initial = if args.initial == "auto" {
+        let (chosen, why) = auto_initial(&table);
+        println!("initial state auto: {} ({why})", chosen.name());
+        chosen
+    } else {
+        InitialState::parse(&args.initial).map_err(|e| {
+            anyhow!("--initial: {e}, or auto (periodic for closed loops, else demagnetized)")
+        })?
+    };
     let (model, result) = fit_table(&table, &spec, range, args.margin, initial, &options)?;
     let json = model.to_json_pretty();
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -270,8 +290,63 @@ fn loops_figure(
 }
 
 /// Runs `preisach-predict`.
+/// `--initial auto`: periodic when every experiment is a closed loop (its last sample within 2 %
+/// of its input and output ranges of its first), else demagnetized.
+fn auto_initial(table: &Table) -> (InitialState, String) {
+    let closed = |input: &[f64], output: &[f64]| -> bool {
+        let span = |v: &[f64]| {
+            let (lo, hi) = v
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            hi - lo
+        };
+        match (input.first(), input.last(), output.first(), output.last()) {
+            (Some(&u0), Some(&u1), Some(&y0), Some(&y1)) => {
+                let (su, sy) = (span(input), span(output));
+                su > 0.0 && (u1 - u0).abs() <= 0.02 * su && (y1 - y0).abs() <= 0.02 * sy.max(1e-300)
+            }
+            _ => false,
+        }
+    };
+    let n = table.series.len();
+    let closed_count = table
+        .series
+        .iter()
+        .filter(|s| closed(&s.input, &s.output))
+        .count();
+    if n > 0 && closed_count == n {
+        (
+            InitialState::Periodic,
+            format!("all {n} experiments are closed loops"),
+        )
+    } else {
+        (
+            InitialState::Demagnetized,
+            format!("{closed_count} of {n} experiments are closed loops"),
+        )
+    }
+}
+
+/// The group column a model was fitted with (recorded in its provenance), if any.
+fn model_group_column(model: &PreisachModel) -> Option<String> {
+    model
+        .provenance
+        .get("group_column")
+        .and_then(|g| g.as_str())
+        .map(str::to_string)
+}
+
 pub fn run_predict(args: &PredictArgs) -> Result<()> {
     let model = PreisachModel::load(&args.model).map_err(|e| anyhow!(e))?;
+    let group = if args.no_group {
+        None
+    } else {
+        args.group_col
+            .clone()
+            .or_else(|| model_group_column(&model))
+    };
     let spec = ColumnSpec {
         input: args
             .input_col
@@ -281,11 +356,21 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
             .output_col
             .clone()
             .unwrap_or_else(|| model.output_column.clone()),
-        group: args.group_col.clone(),
+        group,
         filter: filter(args.score_rows.as_deref())?,
     };
     let table = read_columns(&args.file, &spec)?;
     let (predictions, score) = predict_table(&model, &table);
+    println!(
+        "experiments: {} (initial state {} each)",
+        match (&spec.group, args.group_col.is_some(), args.no_group) {
+            (Some(g), true, _) => format!("runs of equal `{g}` (--group-col)"),
+            (Some(g), false, _) => format!("runs of equal `{g}` (the model's group column)"),
+            (None, _, true) => "the whole file (--no-group)".to_string(),
+            (None, _, false) => "the whole file (the model was fitted without groups)".to_string(),
+        },
+        model.initial_state.name()
+    );
     let outside: usize = table
         .series
         .iter()
@@ -307,8 +392,35 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
             model.h_min, model.h_max
         );
     }
+    let groups = group_scores(&table, &predictions);
+    if groups.len() > 1 {
+        println!(
+            "per experiment (scored rows): rows, RMS error in `{}` units, NRMSE of its own range",
+            spec.output
+        );
+        for g in &groups {
+            println!(
+                "  {:>12}: {:>6} rows, RMS {:.4e}, NRMSE {}",
+                g.label,
+                g.rows,
+                g.rms,
+                g.nrmse.map_or("n/a (no output range)".into(), |s| format!(
+                    "{:.4} %",
+                    100.0 * s
+                ))
+            );
+        }
+    }
+    let (rows, sq) = groups.iter().fold((0usize, 0.0f64), |(n, s), g| {
+        (n + g.rows, s + g.rms * g.rms * g.rows as f64)
+    });
     match score {
-        Some(s) => println!("NRMSE {:.4} % of the measured range", 100.0 * s),
+        Some(s) => println!(
+            "NRMSE {:.4} % of the measured range; RMS {:.4e} `{}` over {rows} scored rows",
+            100.0 * s,
+            (sq / rows.max(1) as f64).sqrt(),
+            spec.output
+        ),
         None => bail!("no scored rows with an output range: nothing to compare"),
     }
     write_predicted(&args.output, &table, &predictions, &spec)?;
@@ -317,6 +429,50 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
         println!("wrote {}", p.display());
     }
     Ok(())
+}
+
+/// The score of one experiment.
+struct GroupScore {
+    label: String,
+    rows: usize,
+    /// RMS error over its scored rows, output units.
+    rms: f64,
+    /// RMS error / measured range of its scored rows.
+    nrmse: Option<f64>,
+}
+
+fn group_scores(table: &Table, predictions: &[Vec<f64>]) -> Vec<GroupScore> {
+    table
+        .series
+        .iter()
+        .zip(predictions)
+        .filter_map(|(s, p)| {
+            let pairs: Vec<(f64, f64)> = s
+                .selected
+                .iter()
+                .zip(p.iter().zip(&s.output))
+                .filter(|(&sel, _)| sel)
+                .map(|(_, (&pt, &mt))| (pt, mt))
+                .collect();
+            if pairs.is_empty() {
+                return None;
+            }
+            let rms = (pairs.iter().map(|(p, m)| (p - m) * (p - m)).sum::<f64>()
+                / pairs.len() as f64)
+                .sqrt();
+            let (lo, hi) = pairs
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &(_, m)| {
+                    (a.min(m), b.max(m))
+                });
+            Some(GroupScore {
+                label: s.label.clone(),
+                rows: pairs.len(),
+                rms,
+                nrmse: (hi > lo).then(|| rms / (hi - lo)),
+            })
+        })
+        .collect()
 }
 
 fn write_predicted(
