@@ -10,6 +10,7 @@
 //!   output limits, and the control loop one timer interrupt runs.
 //! * [`params`]: the actuator parameters baked in at build time from the JSON file.
 //! * [`trajectory`]: the Van der Pol desired trajectory integrated on the chip.
+//! * [`sensor`]: the displacement sample of every tick, scaled and checked.
 //! * [`sqrt`]: the square root, on the FPU's `VSQRT.F32` on the Cortex-M4F.
 //! * [`output`]: current command → DAC code (fixed point) → SPI DAC through embedded-hal.
 //! * [`board`]: QEMU mps2-an386 and NUCLEO-F446RE support (behind their `board-*` features,
@@ -31,5 +32,6 @@ pub mod model;
 pub mod output;
 pub mod params;
 pub mod preisach;
+pub mod sensor;
 pub mod sqrt;
 pub mod trajectory;

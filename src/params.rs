@@ -81,6 +81,23 @@ pub struct Amplifier {
     pub coil_inductance_h: f32,
 }
 
+/// The displacement sensor (see the parameter file's `sensor` section).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sensor {
+    /// ADC resolution, bits.
+    pub adc_bits: u32,
+    /// Displacement per count, m.
+    pub gain_m_per_count: f32,
+    /// Displacement at count 0, m.
+    pub offset_m: f32,
+    /// Lowest valid reading, m.
+    pub valid_min_m: f32,
+    /// Highest valid reading, m.
+    pub valid_max_m: f32,
+    /// Delay of the sample behind the displacement, s.
+    pub sample_delay_s: f32,
+}
+
 /// Van der Pol desired-trajectory settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Trajectory {
@@ -105,6 +122,8 @@ pub struct ActuatorParameters {
     pub control: Control,
     /// Coil and amplifier.
     pub amplifier: Amplifier,
+    /// Displacement sensor.
+    pub sensor: Sensor,
     /// Desired-trajectory settings.
     pub trajectory: Trajectory,
 }
@@ -123,7 +142,9 @@ mod from_file {
     //! Run-time conversion of a parameter file (host tools), the same f64 → f32 narrowing
     //! `build.rs` applies when it bakes a file.
 
-    use super::{Actuator, ActuatorParameters, Amplifier, Control, PreisachGrid, Trajectory};
+    use super::{
+        Actuator, ActuatorParameters, Amplifier, Control, PreisachGrid, Sensor, Trajectory,
+    };
     use crate::preisach::CELL_COUNT;
     use actuator_params::{ActuatorParams, ParamsError};
     use std::format;
@@ -201,6 +222,14 @@ mod from_file {
                     compliance_voltage_v: file.amplifier.compliance_voltage_v as f32,
                     coil_resistance_ohm: file.amplifier.coil_resistance_ohm as f32,
                     coil_inductance_h: file.amplifier.coil_inductance_h as f32,
+                },
+                sensor: Sensor {
+                    adc_bits: file.sensor.adc_bits,
+                    gain_m_per_count: file.sensor.gain_m_per_count as f32,
+                    offset_m: file.sensor.offset_m as f32,
+                    valid_min_m: file.sensor.valid_min_m as f32,
+                    valid_max_m: file.sensor.valid_max_m as f32,
+                    sample_delay_s: file.sensor.sample_delay_s as f32,
                 },
                 trajectory: Trajectory {
                     van_der_pol_mu: t.van_der_pol_mu as f32,

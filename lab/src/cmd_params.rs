@@ -129,6 +129,16 @@ fn check(path: &Path) -> Result<()> {
         amp.coil_inductance_h * 1e3,
         amp.max_slew_a_per_s(c.current_limit_a)
     );
+    let sn = &file.sensor;
+    println!(
+        "  sensor       {}-bit ADC, {:.4} nm/count from {:.3} µm, valid [{:.2}, {:.2}] µm, delay {:.1} µs",
+        sn.adc_bits,
+        sn.gain_m_per_count * 1e9,
+        sn.offset_m * 1e6,
+        sn.valid_min_m * 1e6,
+        sn.valid_max_m * 1e6,
+        sn.sample_delay_s * 1e6
+    );
     println!(
         "  trajectory   Van der Pol μ = {}, scale {} Hz, band [{:.2}, {:.2}] µm",
         t.van_der_pol_mu,

@@ -89,6 +89,14 @@ pub fn widen(p: &ActuatorParameters) -> ActuatorParams {
         coil_resistance_ohm: p.amplifier.coil_resistance_ohm as f64,
         coil_inductance_h: p.amplifier.coil_inductance_h as f64,
     };
+    file.sensor = actuator_params::Sensor {
+        adc_bits: p.sensor.adc_bits,
+        gain_m_per_count: p.sensor.gain_m_per_count as f64,
+        offset_m: p.sensor.offset_m as f64,
+        valid_min_m: p.sensor.valid_min_m as f64,
+        valid_max_m: p.sensor.valid_max_m as f64,
+        sample_delay_s: p.sensor.sample_delay_s as f64,
+    };
     file.trajectory.van_der_pol_mu = p.trajectory.van_der_pol_mu as f64;
     file.trajectory.frequency_scale_hz = p.trajectory.frequency_scale_hz as f64;
     file.trajectory.displacement_min_m = p.trajectory.displacement_min_m as f64;

@@ -91,6 +91,19 @@ pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
         let _ = writeln!(out, "        {name}: {},", lit(v));
     }
     let _ = writeln!(out, "    }},");
+    let sn = &params.sensor;
+    let _ = writeln!(out, "    sensor: Sensor {{");
+    let _ = writeln!(out, "        adc_bits: {},", sn.adc_bits);
+    for (name, v) in [
+        ("gain_m_per_count", sn.gain_m_per_count),
+        ("offset_m", sn.offset_m),
+        ("valid_min_m", sn.valid_min_m),
+        ("valid_max_m", sn.valid_max_m),
+        ("sample_delay_s", sn.sample_delay_s),
+    ] {
+        let _ = writeln!(out, "        {name}: {},", lit(v));
+    }
+    let _ = writeln!(out, "    }},");
     let _ = writeln!(out, "    trajectory: Trajectory {{");
     for (name, v) in [
         ("van_der_pol_mu", t.van_der_pol_mu),

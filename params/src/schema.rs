@@ -31,6 +31,8 @@ pub struct ActuatorParams {
     /// The coil's electrical constants and the amplifier driving it: they bound the current slew
     /// rate the controller may command.
     pub amplifier: Amplifier,
+    /// The displacement sensor the control interrupt reads every tick.
+    pub sensor: Sensor,
     /// Desired-trajectory generator (Van der Pol oscillator, paper Section 5).
     pub trajectory: Trajectory,
     /// Where these numbers come from. Free-form for tools; `source` is required.
@@ -113,6 +115,28 @@ impl Amplifier {
         (self.compliance_voltage_v - self.coil_resistance_ohm * current_limit_a)
             / self.coil_inductance_h
     }
+}
+
+/// The displacement sensor: an ADC count per control tick, scaled to metres. A reading outside
+/// `[valid_min_m, valid_max_m]` (a sensor at its rail, a broken cable, the rod beyond its stroke)
+/// or a count above the ADC's range is a sensor fault: the controller ramps the coil to 0 A and
+/// flags it (`docs/safety.md`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sensor {
+    /// Resolution of the ADC, bits (counts `0 ..= 2^bits − 1`).
+    pub adc_bits: u32,
+    /// Displacement per count, m (negative for a sensor mounted the other way round).
+    pub gain_m_per_count: f64,
+    /// Displacement at count 0, m.
+    pub offset_m: f64,
+    /// Lowest valid reading, m.
+    pub valid_min_m: f64,
+    /// Highest valid reading, m.
+    pub valid_max_m: f64,
+    /// Delay from the displacement to the sample the interrupt reads (conversion, anti-alias
+    /// filter group delay), s.
+    pub sample_delay_s: f64,
 }
 
 /// Desired-trajectory generator: a Van der Pol oscillator `x'' - μ (1 - x²) x' + x = 0` in scaled
@@ -357,6 +381,69 @@ impl ActuatorParams {
                     amp.compliance_voltage_v,
                     amp.coil_resistance_ohm,
                     amp.coil_inductance_h
+                ),
+            ));
+        }
+        let sn = &self.sensor;
+        if !(8..=24).contains(&sn.adc_bits) {
+            return Err(err(
+                "sensor.adc_bits",
+                format!("must be 8 ..= 24, got {}", sn.adc_bits),
+            ));
+        }
+        for (field, value) in [
+            ("sensor.gain_m_per_count", sn.gain_m_per_count),
+            ("sensor.offset_m", sn.offset_m),
+            ("sensor.valid_min_m", sn.valid_min_m),
+            ("sensor.valid_max_m", sn.valid_max_m),
+            ("sensor.sample_delay_s", sn.sample_delay_s),
+        ] {
+            check_finite(field, value).map_err(|r| err(field, r))?;
+        }
+        if sn.gain_m_per_count == 0.0 {
+            return Err(err(
+                "sensor.gain_m_per_count",
+                "must not be 0 (the reading would not depend on the count)".into(),
+            ));
+        }
+        if sn.valid_min_m >= sn.valid_max_m {
+            return Err(err(
+                "sensor.valid_min_m",
+                format!(
+                    "must be < sensor.valid_max_m ({} >= {})",
+                    sn.valid_min_m, sn.valid_max_m
+                ),
+            ));
+        }
+        let full_count = ((1u64 << sn.adc_bits) - 1) as f64;
+        let (r0, r1) = (sn.offset_m, sn.offset_m + sn.gain_m_per_count * full_count);
+        let (reach_lo, reach_hi) = (r0.min(r1), r0.max(r1));
+        if sn.valid_min_m < reach_lo || sn.valid_max_m > reach_hi {
+            return Err(err(
+                "sensor.valid_max_m",
+                format!(
+                    "the valid range [{}, {}] m must lie inside what the ADC can read, [{reach_lo:.4e}, {reach_hi:.4e}] m (offset + gain x 0 ..= {full_count})",
+                    sn.valid_min_m, sn.valid_max_m
+                ),
+            ));
+        }
+        if t.displacement_min_m < sn.valid_min_m || t.displacement_max_m > sn.valid_max_m {
+            return Err(err(
+                "sensor.valid_min_m",
+                format!(
+                    "the trajectory band [{}, {}] m must lie inside the sensor's valid range [{}, {}] m",
+                    t.displacement_min_m, t.displacement_max_m, sn.valid_min_m, sn.valid_max_m
+                ),
+            ));
+        }
+        let period_s = 1.0 / self.control.sample_rate_hz;
+        if sn.sample_delay_s < 0.0 || sn.sample_delay_s > 10.0 * period_s {
+            return Err(err(
+                "sensor.sample_delay_s",
+                format!(
+                    "must be >= 0 and at most 10 control periods ({:.3e} s), got {}",
+                    10.0 * period_s,
+                    sn.sample_delay_s
                 ),
             ));
         }

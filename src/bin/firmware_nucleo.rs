@@ -1,7 +1,9 @@
 //! Control firmware for the NUCLEO-F446RE (STM32F446RE, Cortex-M4F at 180 MHz).
 //!
 //! TIM2's update interrupt fires at the JSON's control rate (`control.sample_rate_hz`, 10 kHz by
-//! default) and runs one control step — Van der Pol trajectory → dynamic inverse → output limiter
+//! default), reads the displacement sensor (ADC1 on PA0/A0, scaled and checked by the `sensor`
+//! section; a bad or missing sample latches a sensor fault and ramps the coil to 0 A) and runs
+//! one control step — Van der Pol trajectory → dynamic inverse → output limiter
 //! — with the same `magctl::inverse::ControlLoop` as the QEMU firmware and the host, then writes
 //! the current command to the SPI DAC (`magctl::output::SpiDac` over embedded-hal, SPI1 + PB6
 //! chip select; wiring in `magctl::board::nucleo_f446re`), then feeds the independent watchdog.
@@ -34,6 +36,7 @@ mod firmware {
     use cortex_m::peripheral::DWT;
     use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
     use magctl::board::handoff::HandOff;
+    use magctl::board::nucleo_f446re::adc::DisplacementAdc;
     use magctl::board::nucleo_f446re::spi::{ChipSelect, Spi1};
     use magctl::board::nucleo_f446re::timer::ControlTimer;
     use magctl::board::nucleo_f446re::watchdog::{self, Watchdog};
@@ -63,6 +66,7 @@ mod firmware {
         state: LoopState<CAPACITY>,
         dac: Dac,
         timer: ControlTimer,
+        adc: DisplacementAdc,
         watchdog: Watchdog,
         consecutive_dac_timeouts: u32,
     }
@@ -78,6 +82,8 @@ mod firmware {
     static SPI_TIMEOUTS: AtomicU32 = AtomicU32::new(0);
     /// Staircase merges of the controller's Preisach memory (mirrored each interrupt).
     static MERGES: AtomicU32 = AtomicU32::new(0);
+    /// Rejected sensor samples (the first latches the fault; mirrored each interrupt).
+    static SENSOR_FAULTS: AtomicU32 = AtomicU32::new(0);
     /// Fewest / most core cycles spent in one interrupt (DWT).
     static MIN_CYCLES: AtomicU32 = AtomicU32::new(u32::MAX);
     static MAX_CYCLES: AtomicU32 = AtomicU32::new(0);
@@ -113,7 +119,14 @@ mod firmware {
             return;
         };
         app.timer.clear();
-        let out = app.control.tick(INVERSE, &mut app.state);
+        // The sensor sample of this period (bounded wait), scaled and checked; a bad or missing
+        // sample latches the sensor fault and the command ramps to 0 A.
+        let sample = app
+            .adc
+            .sample()
+            .and_then(|count| app.control.sensor().displacement_m(count));
+        let out = app.control.tick_sensed(INVERSE, &mut app.state, sample);
+        SENSOR_FAULTS.store(app.state.core.counters.sensor_faults, Ordering::Relaxed);
         if app.dac.write_current(out.current_a).is_err() {
             SPI_TIMEOUTS.fetch_add(1, Ordering::Relaxed);
             app.consecutive_dac_timeouts = app.consecutive_dac_timeouts.saturating_add(1);
@@ -216,6 +229,7 @@ mod firmware {
         let Some(timer) = ControlTimer::new(&dp.RCC, rate_hz) else {
             halt("TIM2 cannot run at the control rate (must divide 90 MHz)")
         };
+        let adc = DisplacementAdc::new(&dp.RCC);
         let (watchdog, configured) = Watchdog::start(&dp.DBGMCU);
         if !configured {
             defmt::warn!(
@@ -227,6 +241,7 @@ mod firmware {
             state,
             dac,
             timer,
+            adc,
             watchdog,
             consecutive_dac_timeouts: 0,
         };
@@ -243,7 +258,7 @@ mod firmware {
             if ticks >= next_report {
                 next_report = next_report.wrapping_add(rate_hz);
                 defmt::info!(
-                    "{=u32} interrupts; cycles/interrupt min {=u32} max {=u32}; overruns {=u32}; u clamped {=u32}, current limited {=u32}, slew limited {=u32}, faults {=u32}, SPI timeouts {=u32}, staircase merges {=u32}, log bytes dropped {=u32}",
+                    "{=u32} interrupts; cycles/interrupt min {=u32} max {=u32}; overruns {=u32}; u clamped {=u32}, current limited {=u32}, slew limited {=u32}, faults {=u32}, SPI timeouts {=u32}, staircase merges {=u32}, sensor faults {=u32}, log bytes dropped {=u32}",
                     ticks,
                     MIN_CYCLES.load(Ordering::Relaxed),
                     MAX_CYCLES.load(Ordering::Relaxed),
@@ -254,6 +269,7 @@ mod firmware {
                     FLAGGED[3].load(Ordering::Relaxed),
                     SPI_TIMEOUTS.load(Ordering::Relaxed),
                     MERGES.load(Ordering::Relaxed),
+                    SENSOR_FAULTS.load(Ordering::Relaxed),
                     rtt::DROPPED_BYTES.load(Ordering::Relaxed)
                 );
             }

@@ -41,8 +41,11 @@
 //! Exit status: 0 after the four phases with no dropped record, no overrun, no fault, no SPI
 //! timeout and at least one merge in the merge phase;
 //! 3 if a check failed; 101 panic, 102 HardFault, 103 unexpected interrupt (see
-//! `board::mps2_an386::panic`); 4-6 start-up failures. Fault injection for the tests:
-//! `-semihosting-config ...,arg=inject=panic` or `arg=inject=hardfault`.
+//! `board::mps2_an386::panic`); 4-6 start-up failures; 7 after `inject=sensor-fault` when the
+//! coil ramped to 0 A at the slew limit and held it, flagged. Fault injection for the tests:
+//! `-semihosting-config ...,arg=inject=panic`, `arg=inject=hardfault` or
+//! `arg=inject=sensor-fault` (the dynamic phase then reads a virtual sensor — the desired
+//! displacement — with one out-of-range sample, and the run ends after it).
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 
@@ -83,6 +86,8 @@ mod firmware {
 
     /// Preisach memory capacity (reversal points) of the controller.
     const CAPACITY: usize = magctl::preisach::DEFAULT_CAPACITY;
+    /// Dynamic-phase interrupt that receives the injected sensor fault (`inject=sensor-fault`).
+    pub const SENSOR_FAULT_TICK: u32 = 2_500;
     /// Interrupts of the naive phase.
     pub const NAIVE_TICKS: u32 = 1_000;
     /// Interrupts of the Everett-bisection phase.
@@ -151,6 +156,15 @@ mod firmware {
         next_desired: DesiredMotion,
         min_ticks: [u32; 7],
         max_ticks: [u32; 7],
+        /// `inject=sensor-fault`: the dynamic phase reads a virtual sensor (the desired
+        /// displacement, valid) and one out-of-range sample; the run then ends.
+        inject_sensor_fault: bool,
+        /// Interrupts from the fault until the command first reached 0 A.
+        ticks_to_zero: Option<u32>,
+        /// A command other than 0 A after it had reached 0, or a command without the flag.
+        ramp_violated: bool,
+        /// The command at the fault, A.
+        current_at_fault_a: f32,
         naive: NaiveLoopState<CAPACITY>,
         relay_core: LoopCore,
         relay: RelayGrid<'static>,
@@ -187,6 +201,7 @@ mod firmware {
         let timer1_entry = app.timer1.value();
         app.timer0.clear();
         let out = match app.phase {
+            PHASE_DYNAMIC if app.inject_sensor_fault => sensor_fault_tick(app),
             PHASE_DYNAMIC => app.control.tick(InverseKind::Dynamic, &mut app.fast),
             PHASE_STATIC => app.control.tick(InverseKind::Static, &mut app.fast),
             PHASE_NAIVE => app.control.tick_naive(InverseKind::Dynamic, &mut app.naive),
@@ -281,6 +296,45 @@ mod firmware {
         }
     }
 
+    /// One dynamic-phase interrupt of the `inject=sensor-fault` run: the sample is the desired
+    /// displacement (a valid reading) except at [`SENSOR_FAULT_TICK`], where it is the sensor's
+    /// rail; records how the command ramps to 0 A after it.
+    #[inline(never)]
+    fn sensor_fault_tick(app: &mut App) -> magctl::inverse::TickOutput {
+        let sensor = *app.control.sensor();
+        let sample = if app.tick == SENSOR_FAULT_TICK {
+            sensor.displacement_m(sensor.count_of(1.0))
+        } else {
+            let y = app
+                .control
+                .trajectory()
+                .motion(&app.fast.core.trajectory)
+                .displacement_m;
+            sensor.check_m(y)
+        };
+        let before_a = app.fast.core.last_current_a;
+        let out = app
+            .control
+            .tick_sensed(InverseKind::Dynamic, &mut app.fast, sample);
+        if app.tick == SENSOR_FAULT_TICK {
+            app.current_at_fault_a = before_a;
+        }
+        if app.tick >= SENSOR_FAULT_TICK {
+            let flagged = out.flags.has(magctl::inverse::CommandFlags::SENSOR_FAULT);
+            match app.ticks_to_zero {
+                Some(_) if out.current_a != 0.0 => app.ramp_violated = true,
+                None if out.current_a == 0.0 => {
+                    app.ticks_to_zero = Some(app.tick - SENSOR_FAULT_TICK + 1)
+                }
+                _ => {}
+            }
+            if !flagged {
+                app.ramp_violated = true;
+            }
+        }
+        out
+    }
+
     /// One interrupt with the Everett-bisection baseline (out of line, so that the baselines do
     /// not change how the compiler lays out the controller's own path).
     #[inline(never)]
@@ -306,6 +360,11 @@ mod firmware {
     fn next_phase(app: &mut App) {
         app.tick = 0;
         match app.phase {
+            PHASE_DYNAMIC if app.inject_sensor_fault => {
+                app.phase = PHASE_DONE;
+                app.timer0.stop();
+                DONE.store(true, Ordering::Release);
+            }
             PHASE_DYNAMIC => {
                 app.phase = PHASE_STATIC;
                 app.fast = app.control.init(InverseKind::Static);
@@ -456,11 +515,20 @@ mod firmware {
         stats
     }
 
-    fn inject_faults_from_command_line() {
+    /// Handles `inject=hardfault` / `inject=panic` (they do not return); returns whether
+    /// `inject=sensor-fault` was asked for.
+    fn inject_faults_from_command_line() -> bool {
         let mut buf = [0u8; 128];
         let n = semihosting::command_line(&mut buf);
         let line = buf.get(..n).unwrap_or(&[]);
         let has = |needle: &[u8]| line.windows(needle.len()).any(|w| w == needle);
+        if has(b"inject=sensor-fault") {
+            defmt::info!(
+                "fault injection: an out-of-range sensor sample at dynamic-phase interrupt {=u32} (expect exit status 7)",
+                SENSOR_FAULT_TICK
+            );
+            return true;
+        }
         if has(b"inject=hardfault") {
             defmt::info!("fault injection: executing UDF (expect exit status 102)");
             cortex_m::asm::udf();
@@ -470,6 +538,7 @@ mod firmware {
             defmt::info!("fault injection: panicking (expect exit status 101)");
             core::panic!("injected panic");
         }
+        false
     }
 
     fn drain(file: HostFile, chunk: &mut [Record; 32]) -> usize {
@@ -495,7 +564,7 @@ mod firmware {
             "magctl firmware on mps2-an386: control rate {=f32} Hz",
             BAKED_PARAMETERS.control.sample_rate_hz
         );
-        inject_faults_from_command_line();
+        let inject_sensor_fault = inject_faults_from_command_line();
 
         let Some(file) = semihosting::create(b"qemu_capture.bin\0") else {
             defmt::error!("cannot open the capture file on the host");
@@ -579,6 +648,10 @@ mod firmware {
             next_desired: merge_stress_motion(0),
             min_ticks: [u32::MAX; 7],
             max_ticks: [0; 7],
+            inject_sensor_fault,
+            ticks_to_zero: None,
+            ramp_violated: false,
+            current_at_fault_a: 0.0,
         };
         defmt::info!(
             "trajectory: Van der Pol mu {=f32}, {=f32} Hz scale, peak x {=f32}; {=u32} + {=u32} + {=u32} + {=u32} + {=u32} + {=u32} interrupts",
@@ -623,6 +696,20 @@ mod firmware {
         let Some(app) = (unsafe { APP.get_mut() }) else {
             semihosting::exit(4)
         };
+        if app.inject_sensor_fault {
+            let step_a = app.control.limiter().max_step_a();
+            let allowed = libm::ceilf(libm::fabsf(app.current_at_fault_a) / step_a) as u32 + 1;
+            let ticks = app.ticks_to_zero.unwrap_or(u32::MAX);
+            defmt::info!(
+                "sensor fault: {=f32} A at the fault, 0 A after {=u32} interrupts (slew limit allows {=u32}), held and flagged: {=bool}",
+                app.current_at_fault_a,
+                ticks,
+                allowed,
+                !app.ramp_violated
+            );
+            let ok = ticks <= allowed && !app.ramp_violated && app.current_at_fault_a != 0.0;
+            semihosting::exit(if ok { 7 } else { 3 })
+        }
         let c = &app.fast.core.counters;
         for (name, k) in [
             ("dynamic", 1usize),

@@ -9,6 +9,7 @@ use super::{DynamicInverse, InverseMemory, RawCommand, StaticMode};
 use crate::params::ActuatorParameters;
 use crate::preisach::naive::NaiveState;
 use crate::preisach::{PreisachMeasure, PreisachState, SolveError};
+use crate::sensor::{SensorFault, SensorScale};
 use crate::trajectory::{DesiredMotion, TrajectoryError, VanDerPol, VanDerPolState};
 
 /// Which inverse computes the current (switchable at run time).
@@ -33,6 +34,8 @@ pub struct LoopCounters {
     pub slew_limited: u32,
     /// Ticks with a non-finite input or rejected solve (last current held).
     pub faults: u32,
+    /// Sensor samples rejected (the first one latches the sensor fault).
+    pub sensor_faults: u32,
 }
 
 /// What one tick produced.
@@ -61,6 +64,10 @@ pub struct LoopCore {
     pub last_current_a: f32,
     /// Counters.
     pub counters: LoopCounters,
+    /// The last valid sensor reading, m (NaN before the first).
+    pub measured_m: f32,
+    /// The latched sensor fault: once set, every command ramps to and holds 0 A.
+    pub sensor_fault: Option<SensorFault>,
 }
 
 /// Full loop state with the fast Preisach memory.
@@ -108,6 +115,7 @@ pub struct ControlLoop<'m> {
     dynamic: DynamicInverse,
     static_mode: StaticMode,
     limiter: OutputLimiter,
+    sensor: SensorScale,
     coil_factor_per_m: f32,
 }
 
@@ -125,6 +133,7 @@ impl<'m> ControlLoop<'m> {
             dynamic: DynamicInverse::new(&params.actuator, step_s),
             static_mode: StaticMode::new(&params.actuator),
             limiter: OutputLimiter::new(&params.control).map_err(LoopError::Limiter)?,
+            sensor: SensorScale::new(&params.sensor),
             coil_factor_per_m: params.actuator.coil_factor_per_m,
         })
     }
@@ -137,6 +146,11 @@ impl<'m> ControlLoop<'m> {
     /// The output limiter.
     pub fn limiter(&self) -> &OutputLimiter {
         &self.limiter
+    }
+
+    /// The sensor's scaling and validity.
+    pub fn sensor(&self) -> &SensorScale {
+        &self.sensor
     }
 
     /// The dynamic inverse coefficients.
@@ -167,6 +181,8 @@ impl<'m> ControlLoop<'m> {
             memory,
             last_current_a: h0 / self.coil_factor_per_m,
             counters: LoopCounters::default(),
+            measured_m: f32::NAN,
+            sensor_fault: None,
         }
     }
 
@@ -290,6 +306,47 @@ impl<'m> ControlLoop<'m> {
         self.command_with(kind, &mut inv, &mut state.core, desired)
     }
 
+    /// One interrupt with a sensor sample (`Ok(metres)` or the fault found while reading it):
+    /// the first fault is latched ([`LoopCore::sensor_fault`]); from then on the trajectory
+    /// still advances but the command ramps to 0 A at the slew limit and holds it, flagged
+    /// `SENSOR_FAULT`, until the loop is re-initialized (a restart). A valid sample is kept in
+    /// [`LoopCore::measured_m`] and the tick runs as [`ControlLoop::tick`].
+    #[inline]
+    pub fn tick_sensed<const N: usize>(
+        &self,
+        kind: InverseKind,
+        state: &mut LoopState<N>,
+        sample: Result<f32, SensorFault>,
+    ) -> TickOutput {
+        let core = &mut state.core;
+        match sample {
+            Ok(y) => core.measured_m = y,
+            Err(fault) => {
+                core.counters.sensor_faults = core.counters.sensor_faults.wrapping_add(1);
+                if core.sensor_fault.is_none() {
+                    core.sensor_fault = Some(fault);
+                }
+            }
+        }
+        if core.sensor_fault.is_some() {
+            let desired = self.trajectory.step(&mut core.trajectory);
+            let (current_a, flags) = self.limiter.ramp_to_zero(&mut core.last_current_a);
+            let c = &mut core.counters;
+            c.ticks = c.ticks.wrapping_add(1);
+            c.slew_limited = c
+                .slew_limited
+                .wrapping_add(flags.has(CommandFlags::SLEW_LIMITED) as u32);
+            return TickOutput {
+                desired,
+                current_a,
+                h_a_per_m: core.memory.h_a_per_m,
+                m_a_per_m: core.memory.m_a_per_m,
+                flags,
+            };
+        }
+        self.tick(kind, state)
+    }
+
     /// One interrupt with the naive baseline inverse (bisection over the cell-sum forward).
     #[inline(never)]
     pub fn tick_naive<const N: usize>(
@@ -312,6 +369,7 @@ mod tests {
     use crate::inverse::StaticInverse;
     use crate::model::{DynamicModel, ModelFaults, ModelState};
     use crate::params::{BAKED_MEASURE, BAKED_PARAMETERS};
+    use crate::sensor::SensorFault;
 
     const N: usize = crate::preisach::DEFAULT_CAPACITY;
 
@@ -349,6 +407,49 @@ mod tests {
             hi = hi.max(out.desired.displacement_m);
         }
         ((sq / ticks as f64).sqrt() as f32, hi - lo)
+    }
+
+    #[test]
+    fn a_sensor_fault_latches_and_ramps_the_coil_to_zero_at_the_slew_limit() {
+        let p = &BAKED_PARAMETERS;
+        let lp = ControlLoop::new(&BAKED_MEASURE, p).unwrap();
+        let mut st: LoopState<N> = lp.init(InverseKind::Dynamic);
+        let sensor = *lp.sensor();
+        // Run one trajectory period (100 Hz scale: ~100 ticks) to find the largest command,
+        // then stop at a tick near it, so the ramp has far to go.
+        let (mut last, mut largest) = (0.0f32, 0.0f32);
+        for k in 0..2_000 {
+            let y = lp.trajectory().motion(&st.core.trajectory).displacement_m;
+            let out = lp.tick_sensed(InverseKind::Dynamic, &mut st, sensor.check_m(y));
+            assert!(!out.flags.has(CommandFlags::SENSOR_FAULT));
+            last = out.current_a;
+            if k < 200 {
+                largest = largest.max(last.abs());
+            } else if last.abs() >= 0.9 * largest {
+                break;
+            }
+        }
+        assert!(
+            last.abs() > 0.5,
+            "the loop drives the coil before the fault: {last}"
+        );
+        let step = lp.limiter().max_step_a();
+        let first = lp.tick_sensed(InverseKind::Dynamic, &mut st, sensor.displacement_m(4095));
+        assert!(first.flags.has(CommandFlags::SENSOR_FAULT));
+        assert!((first.current_a - last).abs() <= step * 1.0001);
+        assert_eq!(st.core.sensor_fault, Some(SensorFault::OutOfValidRange));
+        let ticks_to_zero = (last.abs() / step).ceil() as usize;
+        let mut prev = first.current_a;
+        for k in 0..ticks_to_zero + 20 {
+            // Valid samples again: the fault stays latched.
+            let out = lp.tick_sensed(InverseKind::Dynamic, &mut st, Ok(20e-6));
+            assert!(out.flags.has(CommandFlags::SENSOR_FAULT));
+            assert!((out.current_a - prev).abs() <= step * 1.0001, "tick {k}");
+            assert!(out.current_a.abs() <= prev.abs());
+            prev = out.current_a;
+        }
+        assert_eq!(prev, 0.0, "held at 0 A");
+        assert_eq!(st.core.counters.sensor_faults, 1);
     }
 
     #[test]

@@ -30,6 +30,8 @@ impl CommandFlags {
     pub const SLEW_LIMITED: u8 = 4;
     /// Non-finite input or rejected solve: the last valid current was held.
     pub const FAULT: u8 = 8;
+    /// A sensor fault is latched: the command ramps to 0 A at the slew limit and stays there.
+    pub const SENSOR_FAULT: u8 = 16;
 
     /// Whether `flag` is set.
     pub fn has(self, flag: u8) -> bool {
@@ -91,6 +93,33 @@ impl OutputLimiter {
     /// Largest change per period, A.
     pub fn max_step_a(&self) -> f32 {
         self.max_step_a
+    }
+
+    /// One step of the ramp to 0 A: `last_current_a` moves toward 0 by at most the slew limit
+    /// (a non-finite held value goes to 0 at once). Flags `SENSOR_FAULT` (and `SLEW_LIMITED`
+    /// while still ramping).
+    #[inline]
+    pub fn ramp_to_zero(&self, last_current_a: &mut f32) -> (f32, CommandFlags) {
+        let held = if last_current_a.is_finite() {
+            *last_current_a
+        } else {
+            0.0
+        };
+        // Not `f32::clamp`: it asserts its bounds are ordered, a panic path in the interrupt.
+        let step = if held > self.max_step_a {
+            self.max_step_a
+        } else if held < -self.max_step_a {
+            -self.max_step_a
+        } else {
+            held
+        };
+        let out = held - step;
+        *last_current_a = out;
+        let mut flags = CommandFlags::SENSOR_FAULT;
+        if out != 0.0 {
+            flags |= CommandFlags::SLEW_LIMITED;
+        }
+        (out, CommandFlags(flags))
     }
 
     /// The safe output for a raw inverse result; updates `last_current_a` (the held value).

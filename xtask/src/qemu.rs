@@ -24,8 +24,9 @@
 //!    static/dynamic ratio is reported and must exceed [`MIN_STATIC_OVER_DYNAMIC`].
 //! 6. **Sizes**: flash (`.vector_table + .text + .rodata + .data`) and static RAM
 //!    (`.data + .bss + .uninit`) from the ELF's section headers.
-//! 7. **Fatal paths**: reruns QEMU with `arg=inject=panic` (exit 101) and `arg=inject=hardfault`
-//!    (exit 102).
+//! 7. **Fault paths**: reruns QEMU with `arg=inject=panic` (exit 101), `arg=inject=hardfault`
+//!    (exit 102) and `arg=inject=sensor-fault` (exit 7: an out-of-range sensor sample latched,
+//!    the coil ramped to 0 A within the slew limit's time and held there, every command flagged).
 //! 8. **No-panic proof**: builds the firmware with `--features panic-never` (must link: no panic
 //!    path anywhere in the image, ISR included) and with `panic-never-canary` (a bounds check in
 //!    the ISR; must fail to link naming `__firmware_contains_a_reachable_panic_path`).
@@ -544,7 +545,11 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     say!("firmware-qemu sizes: flash {flash} B, static RAM {ram} B (stack not included)");
 
     // 7. fatal paths (before the proof builds, which replace the binary)
-    for (arg, want) in [("inject=panic", 101), ("inject=hardfault", 102)] {
+    for (arg, want) in [
+        ("inject=panic", 101),
+        ("inject=hardfault", 102),
+        ("inject=sensor-fault", 7),
+    ] {
         let got = qemu(&elf_path, &out_dir, Some(arg)).output()?.status.code();
         ensure!(
             got == Some(want),

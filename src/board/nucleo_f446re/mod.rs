@@ -8,6 +8,7 @@
 //! DAC8550, two's complement, 24-bit frame, SPI mode 1, see `magctl::output::SpiDac`) drives the coil's
 //! transconductance amplifier (full scale `control.current_limit_a`).
 //!
+//! * [`adc`]: the displacement sensor on ADC1 channel 0 (PA0, A0), one conversion per tick.
 //! * [`clocks`]: HSE bypass → PLL → 180 MHz, register level.
 //! * [`spi`]: SPI1 as an embedded-hal `SpiBus` and PB6 as the chip-select `OutputPin`.
 //! * [`timer`]: TIM2 at the control rate, with overrun detection.
@@ -21,6 +22,7 @@
 //! Everything is programmed at register level through the `stm32f4` PAC (not `stm32f4xx-hal`,
 //! whose clock set-up has panic paths): the whole image links with `--features panic-never`.
 
+pub mod adc;
 pub mod clocks;
 pub mod fatal;
 pub mod rtt;
