@@ -11,6 +11,7 @@
 //! * [`params`]: the actuator parameters baked in at build time from the JSON file.
 //! * [`trajectory`]: the Van der Pol desired trajectory integrated on the chip.
 //! * [`sensor`]: the displacement sample of every tick, scaled and checked.
+//! * [`link`]: the frames of the lock-step plant link of the virtual bench (`docs/hil.md`).
 //! * [`sqrt`]: the square root, on the FPU's `VSQRT.F32` on the Cortex-M4F.
 //! * [`output`]: current command → DAC code (fixed point) → SPI DAC through embedded-hal.
 //! * [`board`]: QEMU mps2-an386 and NUCLEO-F446RE support (behind their `board-*` features,
@@ -28,6 +29,7 @@ extern crate std;
 
 pub mod board;
 pub mod inverse;
+pub mod link;
 pub mod model;
 pub mod output;
 pub mod params;

@@ -12,6 +12,7 @@
 
 mod cmd_diagnose;
 mod cmd_excite;
+mod cmd_hil_plant;
 mod cmd_identify;
 mod cmd_loops;
 mod cmd_params;
@@ -60,6 +61,9 @@ enum Command {
     Rig(cmd_rig::Args),
     /// Where a dataset disagrees with the nominal model and which unmodelled effect explains it.
     Diagnose(cmd_diagnose::Args),
+    /// The bench plant as a plant program of the virtual bench: lock-step frames on
+    /// stdin/stdout (docs/hil.md); run by `cargo xtask hil`.
+    HilPlant(cmd_hil_plant::Args),
 }
 
 /// Exit code for an invalid parameter file.
@@ -78,6 +82,7 @@ fn main() -> ExitCode {
         Command::PreisachPredict(args) => cmd_preisach_fit::run_predict(args),
         Command::Rig(args) => cmd_rig::run(args),
         Command::Diagnose(args) => cmd_diagnose::run(args),
+        Command::HilPlant(args) => cmd_hil_plant::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,6 +3,7 @@
 //! the host (`maglab track`, the QEMU capture check) runs the very same code, so a captured
 //! command stream can be reproduced bit for bit on the host.
 
+use super::conditioning::{Conditioning, ConditioningState};
 use super::inverter::{FastInverter, NaiveInverter, PreisachInverter};
 use super::limiter::{CommandFlags, LimiterError, OutputLimiter};
 use super::{DynamicInverse, InverseMemory, RawCommand, StaticMode};
@@ -345,6 +346,52 @@ impl<'m> ControlLoop<'m> {
             };
         }
         self.tick(kind, state)
+    }
+
+    /// One start-up conditioning tick ([`Conditioning`]) with a sensor sample, on a fresh loop
+    /// state (`init`): the sample is checked and a fault latched as in
+    /// [`ControlLoop::tick_sensed`] (the coil then ramps to 0 A), except a reading outside the
+    /// valid range, which saturation produces on purpose (the full stroke `λ_s·L` lies beyond the
+    /// sensor's range); otherwise the command is the
+    /// sequence's next current, flagged `CONDITIONING`, and becomes the held current, so that a
+    /// later fault ramps from it and tracking starts from the state's own first current when
+    /// the sequence has ended ([`ConditioningState::done`]). The trajectory does not advance.
+    #[inline]
+    pub fn condition_sensed<const N: usize>(
+        &self,
+        conditioning: &Conditioning,
+        sequence: &mut ConditioningState,
+        state: &mut LoopState<N>,
+        sample: Result<f32, SensorFault>,
+    ) -> TickOutput {
+        let core = &mut state.core;
+        match sample {
+            Ok(y) => core.measured_m = y,
+            // Saturating the rod drives it to its full stroke, beyond the sensor's valid range
+            // (and often to its rail): expected here, not a fault.
+            Err(SensorFault::OutOfValidRange) => {}
+            Err(fault) => {
+                core.counters.sensor_faults = core.counters.sensor_faults.wrapping_add(1);
+                if core.sensor_fault.is_none() {
+                    core.sensor_fault = Some(fault);
+                }
+            }
+        }
+        let desired = self.trajectory.motion(&core.trajectory);
+        let (current_a, flags) = if core.sensor_fault.is_some() {
+            self.limiter.ramp_to_zero(&mut core.last_current_a)
+        } else {
+            let i = conditioning.step(sequence);
+            core.last_current_a = i;
+            (i, CommandFlags(CommandFlags::CONDITIONING))
+        };
+        TickOutput {
+            desired,
+            current_a,
+            h_a_per_m: core.memory.h_a_per_m,
+            m_a_per_m: core.memory.m_a_per_m,
+            flags,
+        }
     }
 
     /// One interrupt with the naive baseline inverse (bisection over the cell-sum forward).

@@ -32,6 +32,8 @@ impl CommandFlags {
     pub const FAULT: u8 = 8;
     /// A sensor fault is latched: the command ramps to 0 A at the slew limit and stays there.
     pub const SENSOR_FAULT: u8 = 16;
+    /// The command belongs to the start-up conditioning sequence, not to tracking.
+    pub const CONDITIONING: u8 = 32;
 
     /// Whether `flag` is set.
     pub fn has(self, flag: u8) -> bool {

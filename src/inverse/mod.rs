@@ -5,9 +5,12 @@
 //! * [`StaticMode`]: the static inverse through the same generic interface as the dynamic one.
 //! * [`PreisachInverter`]: `H = Γ⁻¹(M)` with the fast exact inverse or the naive baseline.
 //! * [`OutputLimiter`]: output safety (±I_max, slew limit, hold on NaN/inf) in front of the DAC.
+//! * [`Conditioning`]: the start-up sequence that puts the rod's memory where the controller
+//!   assumes it (negative saturation, then a monotone rise to the first current).
 //! * [`ControlLoop`]: one control interrupt (trajectory → inverse → limiter), switchable between
 //!   the dynamic and the static inverse with [`InverseKind`]; shared by firmware and host.
 
+mod conditioning;
 mod control_loop;
 mod dynamic;
 mod inverter;
@@ -15,6 +18,9 @@ mod limiter;
 mod static_inverse;
 mod static_mode;
 
+pub use conditioning::{
+    Conditioning, ConditioningError, ConditioningState, HOLD_S, RAMP_FULL_SCALE_S,
+};
 pub use control_loop::{
     ControlLoop, InverseKind, LoopCore, LoopCounters, LoopError, LoopState, NaiveLoopState,
     TickOutput,

@@ -21,6 +21,7 @@
 mod demo;
 mod doclinks;
 mod fuzz;
+mod hil;
 mod nucleo;
 mod qemu;
 mod setup;
@@ -52,6 +53,11 @@ const COMMANDS: &[Command] = &[
         name: "test",
         about: "setup, then fmt, clippy -D warnings, workspace tests, no_std build, doc links, QEMU run, NUCLEO build [--keep-going]",
         run: test::run,
+    },
+    Command {
+        name: "hil",
+        about: "virtual bench: the firmware under QEMU in lock-step with a plant program over UART0 (docs/hil.md) [--plant-cmd CMD] [--effect E] [--ticks N] [--inject KIND@TICK] [--check]",
+        run: hil::run,
     },
     Command {
         name: "qemu",

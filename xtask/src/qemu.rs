@@ -173,7 +173,7 @@ fn qemu(elf: &Path, out_dir: &Path, extra_arg: Option<&str>) -> Command {
     cmd
 }
 
-fn decode_defmt(elf: &[u8], stream: &[u8]) -> Result<Vec<String>> {
+pub fn decode_defmt(elf: &[u8], stream: &[u8]) -> Result<Vec<String>> {
     let table = defmt_decoder::Table::parse(elf)?.context("the firmware ELF has no defmt table")?;
     let mut decoder = table.new_stream_decoder();
     decoder.received(stream);
@@ -189,7 +189,7 @@ fn decode_defmt(elf: &[u8], stream: &[u8]) -> Result<Vec<String>> {
 }
 
 /// (min, median, max) of a list.
-fn stats(mut v: Vec<f64>) -> (f64, f64, f64) {
+pub fn stats(mut v: Vec<f64>) -> (f64, f64, f64) {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     let median = if n % 2 == 1 {

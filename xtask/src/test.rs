@@ -129,6 +129,11 @@ pub fn steps() -> Vec<Step> {
             action: Action::Func(|ctx| crate::qemu::check(ctx).map(|_| ())),
         },
         Step {
+            name: "hil",
+            purpose: "virtual bench: firmware-hil under QEMU in lock-step with the default plant (1 s, tracking <= 1 %, <= 30 s wall) and a Python plant; NaN sample, silent link and corrupted frame end at 0 A with exits 7/8",
+            action: Action::Func(|ctx| crate::hil::check(ctx).map(|_| ())),
+        },
+        Step {
             name: "nucleo",
             purpose: "NUCLEO-F446RE firmware builds; its no-panic proof holds",
             action: Action::Func(|ctx| crate::nucleo::check(ctx).map(|_| ())),

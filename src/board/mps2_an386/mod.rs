@@ -11,6 +11,7 @@ pub mod panic;
 pub mod pl022;
 pub mod semihosting;
 pub mod timer;
+pub mod uart;
 pub mod vectors;
 
 /// System clock (TIMER0/1 and SysTick count it), Hz.

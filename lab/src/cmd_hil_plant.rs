@@ -1,0 +1,221 @@
+//! `maglab hil-plant`: the bench plant as a plant program of the virtual bench — it speaks the
+//! lock-step link of `docs/hil.md` on stdin (command frames from the firmware) and stdout (sensor
+//! frames to it). `cargo xtask hil` runs it as the default plant; any other program speaking the
+//! same frames can stand in (`--plant-cmd`).
+//!
+//! The plant is `maglab-plant` (its own f64 Preisach evaluation and RK4 integrator, effects as in
+//! `maglab rig --effect`); each command is held over one control period (a DAC with a zero-order
+//! hold). The sensor sample of tick `k` is the plant's sensor output at `t_k` (its own dynamics and
+//! delay when a sensor effect is on) plus white noise, quantized to the ADC count of the parameter
+//! file's `sensor` section (or sent in metres with `--metres`).
+//!
+//! `--log FILE` writes one row per tick: `tick,t_s,current_a,desired_m,y_m,sample_m,count,flags,
+//! instructions` (`y_m`: the rod's true displacement at the end of the tick's period, what the
+//! command's `desired_m` aims at; `sample_m`: the reading sent at the start of the period).
+
+use crate::params_io;
+use anyhow::{bail, Context, Result};
+use clap::Args as ClapArgs;
+use magctl::link::{
+    CommandFrame, Sample, SampleFrame, COMMAND_FRAME_BYTES, KIND_BEGIN, KIND_COMMAND, KIND_END,
+};
+use magctl::sensor::SensorScale;
+use maglab_identify::dataset_info::StartState;
+use maglab_plant::{Effect, Plant};
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use std::io::{Read, Write};
+use std::path::PathBuf;
+
+/// Arguments of `maglab hil-plant`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    /// The plant's parameter file (default: the parameters baked into this build).
+    #[arg(long, value_name = "FILE")]
+    pub params: Option<PathBuf>,
+    /// An effect of the plant, `name` or `name:key=value,...` (repeatable; `maglab rig
+    /// --list-effects`).
+    #[arg(long = "effect")]
+    pub effects: Vec<String>,
+    /// White sensor noise (standard deviation), m.
+    #[arg(long, default_value_t = 0.05e-6)]
+    pub noise_m: f64,
+    /// Seed of the noise and of `--prior-history`.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The plant's magnetic state before the first tick: negative-saturation,
+    /// positive-saturation, demagnetized (all at rest at 0 A).
+    #[arg(long, default_value = "negative-saturation")]
+    pub start: String,
+    /// Before the run, drive the plant through this many random current levels (each held
+    /// 5 ms, within ±the current limit) and back to 0 A: an unknown prior history.
+    #[arg(long, default_value_t = 0)]
+    pub prior_history: usize,
+    /// Send displacements in metres (`M` frames) instead of ADC counts (`S` frames).
+    #[arg(long)]
+    pub metres: bool,
+    /// Write the per-tick log here (CSV).
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+}
+
+fn read_frame(input: &mut impl Read) -> Result<Option<CommandFrame>> {
+    let mut b = [0u8; COMMAND_FRAME_BYTES];
+    let mut got = 0;
+    while got < b.len() {
+        match input.read(&mut b[got..]) {
+            Ok(0) if got == 0 => return Ok(None),
+            Ok(0) => bail!("the link closed inside a frame ({got} of {COMMAND_FRAME_BYTES} bytes)"),
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e).context("reading the link"),
+        }
+    }
+    CommandFrame::decode(&b)
+        .map(Some)
+        .map_err(|e| anyhow::anyhow!("bad command frame {b:02x?}: {e:?}"))
+}
+
+/// Runs the plant program.
+pub fn run(args: &Args) -> Result<()> {
+    let effects = args
+        .effects
+        .iter()
+        .map(|t| Effect::parse(t).map_err(|e| anyhow::anyhow!("--effect {t}: {e}")))
+        .collect::<Result<Vec<_>>>()?;
+    if !(args.noise_m.is_finite() && args.noise_m >= 0.0) {
+        bail!("--noise-m must be >= 0, got {}", args.noise_m);
+    }
+    let start = match args.start.as_str() {
+        "negative-saturation" => StartState::NegativeSaturation,
+        "positive-saturation" => StartState::PositiveSaturation,
+        "demagnetized" => StartState::Demagnetized,
+        other => bail!(
+            "--start `{other}`: expected negative-saturation, positive-saturation or demagnetized"
+        ),
+    };
+    let loaded = params_io::load(args.params.as_deref())?;
+    let scale = SensorScale::new(&loaded.params.sensor);
+    let limit_a = loaded.params.control.current_limit_a as f64;
+    let mut input = std::io::stdin().lock();
+    let mut output = std::io::stdout().lock();
+    let Some(begin) = read_frame(&mut input)? else {
+        bail!("the link closed before the firmware's B frame");
+    };
+    if begin.kind != KIND_BEGIN {
+        bail!(
+            "expected a B frame first, got kind {:?}",
+            begin.kind as char
+        );
+    }
+    let rate_hz = begin.value as f64;
+    let ticks = begin.aux32;
+    let mut plant = Plant::new(&loaded.file, &effects, rate_hz).map_err(|e| anyhow::anyhow!(e))?;
+    plant.start(start, 0.0);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
+    if args.prior_history > 0 {
+        let hold = (0.005 * rate_hz).ceil() as usize;
+        for _ in 0..args.prior_history {
+            let i = rng.random_range(-limit_a..=limit_a);
+            for _ in 0..hold {
+                plant.advance(i, i);
+            }
+            plant.trim_history(0.01);
+        }
+        for _ in 0..4 * hold {
+            plant.advance(0.0, 0.0);
+        }
+        plant.start(StartState::Previous, 0.0);
+    }
+    let noise = Normal::new(0.0, args.noise_m.max(f64::MIN_POSITIVE))
+        .map_err(|e| anyhow::anyhow!("noise: {e}"))?;
+    let mut log = match &args.log {
+        Some(path) => {
+            let mut f = std::io::BufWriter::new(
+                std::fs::File::create(path)
+                    .with_context(|| format!("cannot write {}", path.display()))?,
+            );
+            writeln!(
+                f,
+                "tick,t_s,current_a,desired_m,y_m,sample_m,count,flags,instructions"
+            )?;
+            Some(f)
+        }
+        None => None,
+    };
+    let sample_of = |plant: &Plant, rng: &mut rand::rngs::StdRng| -> (Sample, f64, u32) {
+        let mut y = plant.sensor_at(plant.time_s());
+        if args.noise_m > 0.0 {
+            y += noise.sample(rng);
+        }
+        if args.metres {
+            (Sample::Metres(y as f32), y, 0)
+        } else {
+            let count = scale.count_of(y as f32);
+            (Sample::Count(count), y, count)
+        }
+    };
+    let send = |output: &mut std::io::StdoutLock, seq: u32, sample: Sample| -> Result<()> {
+        let frame = SampleFrame {
+            seq: seq as u16,
+            sample,
+        };
+        output.write_all(&frame.encode())?;
+        output.flush()?;
+        Ok(())
+    };
+    let (mut sample, mut sample_m, mut count) = sample_of(&plant, &mut rng);
+    send(&mut output, 0, sample)?;
+    let mut tick: u32 = 0;
+    loop {
+        let Some(frame) = read_frame(&mut input)? else {
+            bail!("the link closed at tick {tick} without an E frame");
+        };
+        match frame.kind {
+            KIND_END => {
+                eprintln!(
+                    "hil-plant: E frame after {tick} ticks, firmware status {}",
+                    frame.aux
+                );
+                break;
+            }
+            KIND_COMMAND => {}
+            k => bail!("unexpected frame kind {:?} at tick {tick}", k as char),
+        }
+        if frame.seq != tick as u16 {
+            bail!(
+                "command frame out of sequence: expected {}, got {}",
+                tick as u16,
+                frame.seq
+            );
+        }
+        let i = frame.value as f64;
+        if !i.is_finite() {
+            bail!("non-finite current command at tick {tick}");
+        }
+        plant.advance(i, i);
+        plant.trim_history(0.01);
+        if let Some(f) = log.as_mut() {
+            writeln!(
+                f,
+                "{tick},{:.7},{:e},{:e},{:e},{:e},{count},{},{}",
+                tick as f64 / rate_hz,
+                frame.value,
+                frame.desired_m,
+                plant.displacement_m(),
+                sample_m,
+                frame.flags,
+                frame.aux
+            )?;
+        }
+        tick += 1;
+        (sample, sample_m, count) = sample_of(&plant, &mut rng);
+        if tick < ticks {
+            send(&mut output, tick, sample)?;
+        }
+    }
+    if let Some(mut f) = log {
+        f.flush()?;
+    }
+    Ok(())
+}

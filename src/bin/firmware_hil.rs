@@ -1,0 +1,447 @@
+//! Virtual-bench firmware for QEMU's `mps2-an386`: the control loop in lock-step with a plant
+//! program over the CMSDK UART0 (`cargo xtask hil`; protocol in `docs/hil.md`, frames in
+//! `magctl::link`).
+//!
+//! Every control tick:
+//! 1. thread mode receives the plant's sensor frame for tick `k` (the reading at `t_k`), waiting
+//!    at most [`MAX_LINK_POLLS`] polls of the UART; this stands in for the ADC conversion the
+//!    control timer triggers on the board;
+//! 2. it pends the control interrupt (TIMER0's vector, IRQ 8), which reads the sample (count →
+//!    metres and the validity checks of the `sensor` section), runs one `ControlLoop` tick
+//!    (trajectory, inverse, limiter; a bad sample latches a sensor fault and ramps the coil to
+//!    0 A), writes the DAC frame over SPI and leaves the command for the link; its instruction
+//!    count (SysTick / 25.6) travels in the command frame;
+//! 3. thread mode sends the command frame; the plant holds that current over `[t_k, t_{k+1}]`
+//!    and answers with the reading at `t_{k+1}`.
+//!
+//! The plant is the clock: the firmware runs a tick when its sample arrives, so the exchanged data
+//! do not depend on host speed (the run is deterministic under `-icount` for a deterministic
+//! plant). On the board the control timer is the clock and the same handler runs on its
+//! interrupt.
+//!
+//! Before the first tick the firmware sends a `B` frame (control rate, tick count); after the last
+//! an `E` frame with its exit status.
+//!
+//! **Faults** (`docs/hil.md`): a silent link (no complete frame within [`MAX_LINK_POLLS`]), a
+//! frame with a wrong sync byte, kind or sequence number is a *link fault*: the sample of that
+//! tick is `Missing`, the loop latches a sensor fault and the firmware keeps ticking on its own
+//! (no more waiting) until the command has ramped to 0 A at the slew limit, then ends: exit 8. A
+//! sample outside the ADC's range or the valid range, or a non-finite one, is a *sensor fault*:
+//! the coil ramps to 0 A and holds it, every command flagged, while the plant keeps the clock to
+//! the end of the run: exit 7. A clean run exits 0; a failed self-check (a command other than 0 A
+//! after the ramp ended, an unflagged command after a fault, an SPI timeout) exits 3.
+//!
+//! **Start-up conditioning** (`magctl::inverse::Conditioning`): the first ticks ramp the coil to
+//! the negative current limit, hold, ramp up to the controller's first current and hold, so the
+//! rod's memory is the one the controller assumes whatever its history; those commands carry the
+//! `CONDITIONING` flag (32). `condition=off` skips it (to measure what it is worth).
+//!
+//! Command line (semihosting): `ticks=N` tracking ticks (default: one second at the control
+//! rate), `inverse=static` (default dynamic), `condition=off`.
+#![cfg_attr(target_os = "none", no_std)]
+#![cfg_attr(target_os = "none", no_main)]
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!(
+        "firmware-hil is Cortex-M firmware: build it with `--target thumbv7em-none-eabihf \
+         --features board-mps2-an386`, or run `cargo xtask hil`"
+    );
+    std::process::exit(2);
+}
+
+#[cfg(target_os = "none")]
+pub use firmware::*;
+
+#[cfg(target_os = "none")]
+mod firmware {
+    use core::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, AtomicU8, Ordering};
+    use cortex_m::interrupt::InterruptNumber;
+    use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
+    use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
+    use magctl::board::handoff::HandOff;
+    use magctl::board::mps2_an386::fpgaio::MiscPin;
+    use magctl::board::mps2_an386::pl022::Pl022;
+    use magctl::board::mps2_an386::semihosting;
+    use magctl::board::mps2_an386::uart::{CmsdkUart, UART0_BASE};
+    use magctl::board::mps2_an386::{FPGAIO_BASE, SPI0_BASE, TIMER0_IRQ};
+    use magctl::inverse::{
+        CommandFlags, Conditioning, ConditioningState, ControlLoop, InverseKind, LoopState,
+    };
+    use magctl::link::{
+        CommandFrame, Sample, SampleAssembler, SampleFrame, KIND_BEGIN, KIND_COMMAND, KIND_END,
+        KIND_SAMPLE_COUNT, KIND_SAMPLE_METRES,
+    };
+    use magctl::output::{CurrentOutput, DacScale, SpiDac};
+    use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
+    use magctl::sensor::SensorFault;
+
+    /// Preisach memory capacity (reversal points) of the controller.
+    const CAPACITY: usize = magctl::preisach::DEFAULT_CAPACITY;
+    /// Polls of the UART receive buffer per sample frame before the link counts as silent
+    /// (~6 instructions each: ≈ 100 s of virtual time under `-icount shift=10`, a few seconds of
+    /// host time; on a board this would be one control period).
+    pub const MAX_LINK_POLLS: u32 = 1 << 24;
+    /// Polls of the UART transmit buffer per byte before a send counts as failed.
+    pub const MAX_TX_POLLS: u32 = 1 << 16;
+    /// Exit status: a sensor fault was latched and handled (ramp to 0 A, held, flagged).
+    pub const EXIT_SENSOR_FAULT: u32 = 7;
+    /// Exit status: a link fault was handled (ramp to 0 A on the firmware's own clock).
+    pub const EXIT_LINK_FAULT: u32 = 8;
+    /// Exit status: a self-check failed.
+    pub const EXIT_CHECK_FAILED: u32 = 3;
+
+    #[derive(Clone, Copy)]
+    struct Timer0Irq;
+    // SAFETY: 8 is TIMER0's interrupt number on mps2-an386.
+    unsafe impl InterruptNumber for Timer0Irq {
+        fn number(self) -> u16 {
+            TIMER0_IRQ
+        }
+    }
+
+    type Dac = SpiDac<ExclusiveDevice<Pl022, MiscPin, NoDelay>>;
+
+    /// The control interrupt's state.
+    struct App {
+        control: ControlLoop<'static>,
+        kind: InverseKind,
+        state: LoopState<CAPACITY>,
+        /// The start-up conditioning sequence, while it runs.
+        conditioning: Option<(Conditioning, ConditioningState)>,
+        dac: Dac,
+        spi_timeouts: u32,
+    }
+
+    static APP: HandOff<App> = HandOff::new();
+
+    /// The sample of the coming tick (thread mode → interrupt): kind byte (0 = missing) and the
+    /// payload's bits.
+    static SAMPLE_KIND: AtomicU8 = AtomicU8::new(0);
+    static SAMPLE_BITS: AtomicU32 = AtomicU32::new(0);
+    /// The command of the last tick (interrupt → thread mode).
+    static OUT_CURRENT_BITS: AtomicU32 = AtomicU32::new(0);
+    static OUT_DESIRED_BITS: AtomicU32 = AtomicU32::new(0);
+    static OUT_FLAGS: AtomicU8 = AtomicU8::new(0);
+    static OUT_INSTRUCTIONS: AtomicU16 = AtomicU16::new(0);
+    static OUT_READY: AtomicBool = AtomicBool::new(false);
+
+    /// The control interrupt (TIMER0's vector, IRQ 8, pended by the link when a sample arrived).
+    ///
+    /// **Deadline**: one control period on the board. Under QEMU the plant is the clock (module
+    /// docs), so there is no overrun to detect here; the handler's instruction count goes to the
+    /// host with every command and is checked there.
+    /// **Work**: the sample (count → metres, checks), one `ControlLoop::tick_sensed`, one DAC frame,
+    /// the command into the mailbox. No allocation, no panic path (`panic-never` build).
+    ///
+    /// # Safety
+    /// Called only by the hardware through the vector table.
+    #[unsafe(no_mangle)]
+    pub unsafe extern "C" fn TIMER0() {
+        let entry = SYST::get_current();
+        // SAFETY: this interrupt is APP's only user once it has been given.
+        let Some(app) = (unsafe { APP.get_mut() }) else {
+            return;
+        };
+        let bits = SAMPLE_BITS.load(Ordering::Relaxed);
+        let sensor = app.control.sensor();
+        let sample = match SAMPLE_KIND.load(Ordering::Acquire) {
+            KIND_SAMPLE_COUNT => sensor.displacement_m(bits),
+            KIND_SAMPLE_METRES => sensor.check_m(f32::from_bits(bits)),
+            _ => Err(SensorFault::Missing),
+        };
+        let out = match &mut app.conditioning {
+            Some((c, seq)) if !seq.done() => {
+                app.control.condition_sensed(c, seq, &mut app.state, sample)
+            }
+            _ => app.control.tick_sensed(app.kind, &mut app.state, sample),
+        };
+        if app.dac.write_current(out.current_a).is_err() {
+            app.spi_timeouts = app.spi_timeouts.saturating_add(1);
+        }
+        let exit = SYST::get_current();
+        let ticks = entry.wrapping_sub(exit) & 0x00FF_FFFF;
+        // SysTick ticks per instruction = 25.6 = 128 / 5 under `-icount shift=10`.
+        let instructions = (ticks * 5 / 128).min(u16::MAX as u32) as u16;
+        OUT_CURRENT_BITS.store(out.current_a.to_bits(), Ordering::Relaxed);
+        OUT_DESIRED_BITS.store(out.desired.displacement_m.to_bits(), Ordering::Relaxed);
+        OUT_FLAGS.store(out.flags.0, Ordering::Relaxed);
+        OUT_INSTRUCTIONS.store(instructions, Ordering::Relaxed);
+        OUT_READY.store(true, Ordering::Release);
+    }
+
+    /// Receives the sample frame of tick `seq` (bounded wait).
+    fn receive(
+        uart: &mut CmsdkUart,
+        assembler: &mut SampleAssembler,
+        seq: u16,
+    ) -> Result<SampleFrame, ()> {
+        for _ in 0..MAX_LINK_POLLS {
+            if let Some(byte) = uart.try_read() {
+                if let Some(frame) = assembler.push(byte) {
+                    return SampleFrame::decode(&frame, seq).map_err(|_| ());
+                }
+            }
+        }
+        Err(())
+    }
+
+    /// Runs one control interrupt on `sample` and returns its command frame.
+    fn run_tick(sample: Option<Sample>, seq: u16) -> Option<CommandFrame> {
+        let (kind, bits) = match sample {
+            Some(Sample::Count(c)) => (KIND_SAMPLE_COUNT, c),
+            Some(Sample::Metres(m)) => (KIND_SAMPLE_METRES, m.to_bits()),
+            None => (0, 0),
+        };
+        SAMPLE_BITS.store(bits, Ordering::Relaxed);
+        SAMPLE_KIND.store(kind, Ordering::Release);
+        OUT_READY.store(false, Ordering::Relaxed);
+        NVIC::pend(Timer0Irq);
+        // The pended interrupt preempts thread mode at once; these barriers make sure it has run.
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        if !OUT_READY.load(Ordering::Acquire) {
+            return None;
+        }
+        Some(CommandFrame {
+            kind: KIND_COMMAND,
+            seq,
+            value: f32::from_bits(OUT_CURRENT_BITS.load(Ordering::Relaxed)),
+            desired_m: f32::from_bits(OUT_DESIRED_BITS.load(Ordering::Relaxed)),
+            flags: OUT_FLAGS.load(Ordering::Relaxed),
+            aux: OUT_INSTRUCTIONS.load(Ordering::Relaxed),
+            aux32: 0,
+        })
+    }
+
+    /// `key=<decimal>` from the command line.
+    fn arg_u32(line: &[u8], key: &[u8]) -> Option<u32> {
+        let at = line.windows(key.len()).position(|w| w == key)? + key.len();
+        let mut value: u32 = 0;
+        let mut digits = 0;
+        for &c in line.get(at..)? {
+            if !c.is_ascii_digit() {
+                break;
+            }
+            value = value.checked_mul(10)?.checked_add((c - b'0') as u32)?;
+            digits += 1;
+        }
+        (digits > 0).then_some(value)
+    }
+
+    fn end(uart: &mut CmsdkUart, seq: u16, status: u32) -> ! {
+        let frame = CommandFrame {
+            kind: KIND_END,
+            seq,
+            value: 0.0,
+            desired_m: 0.0,
+            flags: 0,
+            aux: status as u16,
+            aux32: 0,
+        };
+        let _ = uart.write_all(&frame.encode(), MAX_TX_POLLS);
+        semihosting::exit(status)
+    }
+
+    #[cortex_m_rt::entry]
+    fn main() -> ! {
+        let Some(mut cp) = cortex_m::Peripherals::take() else {
+            semihosting::exit(4)
+        };
+        cp.SYST.set_clock_source(SystClkSource::Core);
+        cp.SYST.set_reload(0x00FF_FFFF);
+        cp.SYST.clear_current();
+        cp.SYST.enable_counter();
+        let rate_hz = BAKED_PARAMETERS.control.sample_rate_hz;
+        let mut line_buf = [0u8; 128];
+        let n = semihosting::command_line(&mut line_buf);
+        let line = line_buf.get(..n).unwrap_or(&[]);
+        let tracking_ticks = arg_u32(line, b"ticks=").unwrap_or(rate_hz as u32);
+        let condition = !line.windows(13).any(|w| w == b"condition=off");
+        let kind = if line.windows(14).any(|w| w == b"inverse=static") {
+            InverseKind::Static
+        } else {
+            InverseKind::Dynamic
+        };
+        let control = match ControlLoop::new(&BAKED_MEASURE, &BAKED_PARAMETERS) {
+            Ok(c) => c,
+            Err(_) => {
+                defmt::error!("invalid control settings in the baked parameters");
+                semihosting::exit(5)
+            }
+        };
+        let Some(scale) = DacScale::new(BAKED_PARAMETERS.control.current_limit_a) else {
+            semihosting::exit(5)
+        };
+        let spi = unsafe { Pl022::new(SPI0_BASE) };
+        let cs = unsafe { MiscPin::new(FPGAIO_BASE, 1) };
+        let Ok(device) = ExclusiveDevice::new_no_delay(spi, cs);
+        let mut dac = SpiDac::new(device, scale);
+        // 0 A first, whatever the DAC held before this reset.
+        if dac.write_current(0.0).is_err() {
+            defmt::error!("the DAC cannot be written (SPI timeout)");
+            semihosting::exit(6)
+        }
+        let mut uart = unsafe { CmsdkUart::new(UART0_BASE, 16) };
+        let state: LoopState<CAPACITY> = control.init(kind);
+        let conditioning = if condition {
+            let limiter = *control.limiter();
+            match Conditioning::new(
+                &limiter,
+                BAKED_PARAMETERS.actuator.coil_factor_per_m,
+                BAKED_MEASURE.h_min_a_per_m(),
+                rate_hz,
+            ) {
+                Ok(c) => Some((c, c.start(0.0, state.core.last_current_a))),
+                Err(_) => {
+                    defmt::error!("the coil cannot saturate the rod at the current limit: no conditioning possible");
+                    semihosting::exit(5)
+                }
+            }
+        } else {
+            None
+        };
+        let conditioning_ticks =
+            conditioning.map_or(0, |(c, _)| c.ticks(0.0, state.core.last_current_a));
+        let ticks = tracking_ticks.saturating_add(conditioning_ticks);
+        defmt::info!(
+            "firmware-hil: {=u32} conditioning + {=u32} tracking ticks at {=f32} Hz, {=str} inverse, lock-step over UART0",
+            conditioning_ticks,
+            tracking_ticks,
+            rate_hz,
+            if kind == InverseKind::Dynamic {
+                "dynamic"
+            } else {
+                "static"
+            }
+        );
+        let app = App {
+            control,
+            kind,
+            state,
+            conditioning,
+            dac,
+            spi_timeouts: 0,
+        };
+        if APP.give(app).is_err() {
+            semihosting::exit(4)
+        }
+        // SAFETY: APP is published (release) before the interrupt can run.
+        unsafe { NVIC::unmask(Timer0Irq) };
+
+        let begin = CommandFrame {
+            kind: KIND_BEGIN,
+            seq: 0,
+            value: rate_hz,
+            desired_m: 0.0,
+            flags: 0,
+            aux: 0,
+            aux32: ticks,
+        };
+        if uart.write_all(&begin.encode(), MAX_TX_POLLS).is_err() {
+            defmt::error!("the link does not take bytes");
+            semihosting::exit(EXIT_LINK_FAULT)
+        }
+        let mut assembler = SampleAssembler::new();
+        let mut link_fault_at: Option<u32> = None;
+        let mut sensor_fault_at: Option<u32> = None;
+        let mut check_failed = false;
+        let (mut min_instr, mut max_instr) = (u16::MAX, 0u16);
+        let mut ramp_done = false;
+        let mut tick: u32 = 0;
+        // After a link fault the firmware is its own clock until the ramp to 0 A has ended
+        // (bounded: the ramp from the current limit takes `limit / max_step` ticks).
+        let ramp_ticks = {
+            let l = control.limiter();
+            libm::ceilf(l.limit_a() / l.max_step_a()) as u32 + 2
+        };
+        while tick < ticks || (link_fault_at.is_some() && !ramp_done && tick < ticks + ramp_ticks) {
+            let seq = tick as u16;
+            let sample = if link_fault_at.is_none() {
+                match receive(&mut uart, &mut assembler, seq) {
+                    Ok(frame) => Some(frame.sample),
+                    Err(()) => {
+                        link_fault_at = Some(tick);
+                        None
+                    }
+                }
+            } else {
+                None
+            };
+            let Some(cmd) = run_tick(sample, seq) else {
+                defmt::error!("the control interrupt did not run at tick {=u32}", tick);
+                semihosting::exit(EXIT_CHECK_FAILED)
+            };
+            min_instr = min_instr.min(cmd.aux);
+            max_instr = max_instr.max(cmd.aux);
+            let flags = CommandFlags(cmd.flags);
+            let faulted = flags.has(CommandFlags::SENSOR_FAULT);
+            if faulted && sensor_fault_at.is_none() {
+                sensor_fault_at = Some(tick);
+            }
+            if sensor_fault_at.is_some() {
+                if !faulted {
+                    check_failed = true;
+                }
+                if ramp_done && cmd.value != 0.0 {
+                    check_failed = true;
+                }
+                ramp_done |= cmd.value == 0.0;
+            }
+            if link_fault_at.is_none() {
+                if uart.write_all(&cmd.encode(), MAX_TX_POLLS).is_err() {
+                    link_fault_at = Some(tick);
+                }
+            } else {
+                // The plant may be gone: try once, never wait long.
+                let _ = uart.write_all(&cmd.encode(), 64);
+                if ramp_done {
+                    tick += 1;
+                    break;
+                }
+            }
+            tick += 1;
+        }
+        NVIC::mask(Timer0Irq);
+        // SAFETY: the interrupt is masked: thread mode is APP's only user now.
+        let spi_timeouts = unsafe { APP.get_mut() }.map_or(0, |a| a.spi_timeouts);
+        defmt::info!(
+            "ticks {=u32}; interrupt instructions min {=u16} max {=u16}; SPI timeouts {=u32}",
+            tick,
+            min_instr,
+            max_instr,
+            spi_timeouts
+        );
+        if spi_timeouts > 0 {
+            check_failed = true;
+        }
+        let status = if check_failed {
+            EXIT_CHECK_FAILED
+        } else if let Some(at) = link_fault_at {
+            defmt::warn!(
+                "link fault at tick {=u32}: coil ramped to 0 A on the firmware's clock ({=bool}), flagged",
+                at,
+                ramp_done
+            );
+            if ramp_done {
+                EXIT_LINK_FAULT
+            } else {
+                EXIT_CHECK_FAILED
+            }
+        } else if let Some(at) = sensor_fault_at {
+            defmt::warn!(
+                "sensor fault at tick {=u32}: coil ramped to 0 A ({=bool}) and held, every command flagged",
+                at,
+                ramp_done
+            );
+            if ramp_done {
+                EXIT_SENSOR_FAULT
+            } else {
+                EXIT_CHECK_FAILED
+            }
+        } else {
+            0
+        };
+        end(&mut uart, tick as u16, status)
+    }
+}

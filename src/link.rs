@@ -1,0 +1,322 @@
+//! The lock-step plant link of the virtual bench (`cargo xtask hil`, `docs/hil.md`): the byte
+//! frames the firmware and a plant program exchange once per control tick.
+//!
+//! One implementation for both ends: the firmware decodes [`SampleFrame`]s and encodes
+//! [`CommandFrame`]s; the host plant (`maglab hil-plant`) does the reverse with the same code.
+//! Everything is little-endian and fixed-size, so a plant written in any language needs only a
+//! byte stream and a struct unpacker (`docs/hil.md` has the tables and a Python example).
+//!
+//! A frame starts with [`SYNC`]; its second byte says what it is. The sequence number is the
+//! control tick modulo 2¹⁶. The decoders never panic: a wrong sync byte, an unknown kind or a
+//! sequence number other than the expected one is an error value, which the firmware treats as a
+//! broken link (`docs/hil.md`, "Faults").
+
+/// First byte of every frame.
+pub const SYNC: u8 = 0xA5;
+/// Bytes of a sample frame (plant → firmware).
+pub const SAMPLE_FRAME_BYTES: usize = 8;
+/// Bytes of a command frame (firmware → plant).
+pub const COMMAND_FRAME_BYTES: usize = 16;
+
+/// Sample-frame kind: the payload is the ADC count (`u32`), scaled by the `sensor` section.
+pub const KIND_SAMPLE_COUNT: u8 = b'S';
+/// Sample-frame kind: the payload is the displacement in metres (`f32`), for a digital sensor
+/// (checked against the valid range like a scaled count; NaN or ±∞ is a sensor fault).
+pub const KIND_SAMPLE_METRES: u8 = b'M';
+/// Command-frame kind: the firmware starts a run; payload `f32` = control rate, Hz; `aux` = the
+/// number of ticks it will run.
+pub const KIND_BEGIN: u8 = b'B';
+/// Command-frame kind: the current command of one tick.
+pub const KIND_COMMAND: u8 = b'C';
+/// Command-frame kind: the firmware ends the run; `aux` = its exit status. No reply expected.
+pub const KIND_END: u8 = b'E';
+
+/// What the plant sent for one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sample {
+    /// An ADC count.
+    Count(u32),
+    /// A displacement, m.
+    Metres(f32),
+}
+
+/// A decoded sample frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SampleFrame {
+    /// Tick modulo 2¹⁶ this sample is for.
+    pub seq: u16,
+    /// The reading.
+    pub sample: Sample,
+}
+
+/// Why a received frame was rejected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameError {
+    /// The first byte is not [`SYNC`].
+    Sync(u8),
+    /// Unknown kind byte.
+    Kind(u8),
+    /// Sequence number other than the expected one (a lost or repeated frame).
+    Sequence {
+        /// Expected.
+        expected: u16,
+        /// Received.
+        got: u16,
+    },
+}
+
+impl SampleFrame {
+    /// Encodes the frame (the plant's side).
+    pub fn encode(&self) -> [u8; SAMPLE_FRAME_BYTES] {
+        let (kind, payload) = match self.sample {
+            Sample::Count(c) => (KIND_SAMPLE_COUNT, c.to_le_bytes()),
+            Sample::Metres(m) => (KIND_SAMPLE_METRES, m.to_le_bytes()),
+        };
+        let s = self.seq.to_le_bytes();
+        [
+            SYNC, kind, s[0], s[1], payload[0], payload[1], payload[2], payload[3],
+        ]
+    }
+
+    /// Decodes a frame and checks its sequence number against `expected_seq` (the firmware's
+    /// side).
+    pub fn decode(b: &[u8; SAMPLE_FRAME_BYTES], expected_seq: u16) -> Result<Self, FrameError> {
+        if b[0] != SYNC {
+            return Err(FrameError::Sync(b[0]));
+        }
+        let seq = u16::from_le_bytes([b[2], b[3]]);
+        let payload = [b[4], b[5], b[6], b[7]];
+        let sample = match b[1] {
+            KIND_SAMPLE_COUNT => Sample::Count(u32::from_le_bytes(payload)),
+            KIND_SAMPLE_METRES => Sample::Metres(f32::from_le_bytes(payload)),
+            k => return Err(FrameError::Kind(k)),
+        };
+        if seq != expected_seq {
+            return Err(FrameError::Sequence {
+                expected: expected_seq,
+                got: seq,
+            });
+        }
+        Ok(SampleFrame { seq, sample })
+    }
+}
+
+/// A command frame (firmware → plant).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommandFrame {
+    /// [`KIND_BEGIN`], [`KIND_COMMAND`] or [`KIND_END`].
+    pub kind: u8,
+    /// Tick modulo 2¹⁶.
+    pub seq: u16,
+    /// `C`: current to hold over the coming period, A. `B`: control rate, Hz. `E`: 0.
+    pub value: f32,
+    /// `C`: the desired displacement at the end of the coming period, m (for the plant's log).
+    pub desired_m: f32,
+    /// `C`: the command's flags (`inverse::CommandFlags` bits).
+    pub flags: u8,
+    /// `C`: instructions the control interrupt took for this command (SysTick / 25.6, saturated);
+    /// `B`: ticks in the run (low 16 bits, see `aux32`); `E`: the exit status.
+    pub aux: u16,
+    /// `B`: ticks in the run; otherwise 0.
+    pub aux32: u32,
+}
+
+impl CommandFrame {
+    /// Encodes the frame: sync, kind, seq (u16), value (f32), desired (f32), flags (u8),
+    /// reserved (u8, 0), aux (u16) — see `docs/hil.md`. `B` carries the tick count in the
+    /// `desired` slot as a `u32` instead.
+    pub fn encode(&self) -> [u8; COMMAND_FRAME_BYTES] {
+        let s = self.seq.to_le_bytes();
+        let v = self.value.to_le_bytes();
+        let d = if self.kind == KIND_BEGIN {
+            self.aux32.to_le_bytes()
+        } else {
+            self.desired_m.to_le_bytes()
+        };
+        let a = self.aux.to_le_bytes();
+        [
+            SYNC, self.kind, s[0], s[1], v[0], v[1], v[2], v[3], d[0], d[1], d[2], d[3],
+            self.flags, 0, a[0], a[1],
+        ]
+    }
+
+    /// Decodes a frame (the plant's side).
+    pub fn decode(b: &[u8; COMMAND_FRAME_BYTES]) -> Result<Self, FrameError> {
+        if b[0] != SYNC {
+            return Err(FrameError::Sync(b[0]));
+        }
+        let kind = b[1];
+        if !matches!(kind, KIND_BEGIN | KIND_COMMAND | KIND_END) {
+            return Err(FrameError::Kind(kind));
+        }
+        let word = [b[8], b[9], b[10], b[11]];
+        Ok(CommandFrame {
+            kind,
+            seq: u16::from_le_bytes([b[2], b[3]]),
+            value: f32::from_le_bytes([b[4], b[5], b[6], b[7]]),
+            desired_m: if kind == KIND_BEGIN {
+                0.0
+            } else {
+                f32::from_le_bytes(word)
+            },
+            flags: b[12],
+            aux: u16::from_le_bytes([b[14], b[15]]),
+            aux32: if kind == KIND_BEGIN {
+                u32::from_le_bytes(word)
+            } else {
+                0
+            },
+        })
+    }
+}
+
+/// Assembles sample frames from a byte stream, one byte at a time (the firmware feeds it the
+/// UART's received bytes; it never blocks and never allocates).
+#[derive(Debug, Clone, Default)]
+pub struct SampleAssembler {
+    buf: [u8; SAMPLE_FRAME_BYTES],
+    len: usize,
+}
+
+impl SampleAssembler {
+    /// An empty assembler.
+    pub const fn new() -> Self {
+        SampleAssembler {
+            buf: [0; SAMPLE_FRAME_BYTES],
+            len: 0,
+        }
+    }
+
+    /// Adds a byte; returns the whole frame when this byte completed one. A first byte other
+    /// than [`SYNC`] is returned at once as a one-byte frame so that the decoder reports the
+    /// desynchronized link instead of waiting for more bytes.
+    pub fn push(&mut self, byte: u8) -> Option<[u8; SAMPLE_FRAME_BYTES]> {
+        if let Some(slot) = self.buf.get_mut(self.len) {
+            *slot = byte;
+        }
+        self.len += 1;
+        if self.len == 1 && byte != SYNC {
+            self.len = 0;
+            let mut bad = [0u8; SAMPLE_FRAME_BYTES];
+            bad[0] = byte;
+            return Some(bad);
+        }
+        if self.len >= SAMPLE_FRAME_BYTES {
+            self.len = 0;
+            return Some(self.buf);
+        }
+        None
+    }
+
+    /// Bytes of an unfinished frame.
+    pub fn pending(&self) -> usize {
+        self.len
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_round_trip_and_bad_frames_are_errors() {
+        for sample in [
+            Sample::Count(0),
+            Sample::Count(4095),
+            Sample::Metres(2.5e-5),
+            Sample::Metres(-0.0),
+        ] {
+            let f = SampleFrame { seq: 513, sample };
+            assert_eq!(SampleFrame::decode(&f.encode(), 513), Ok(f));
+        }
+        let nan = SampleFrame {
+            seq: 7,
+            sample: Sample::Metres(f32::NAN),
+        };
+        match SampleFrame::decode(&nan.encode(), 7) {
+            Ok(SampleFrame {
+                sample: Sample::Metres(m),
+                ..
+            }) => assert!(m.is_nan()),
+            other => panic!("{other:?}"),
+        }
+        let f = SampleFrame {
+            seq: 9,
+            sample: Sample::Count(1),
+        };
+        assert_eq!(
+            SampleFrame::decode(&f.encode(), 10),
+            Err(FrameError::Sequence {
+                expected: 10,
+                got: 9
+            })
+        );
+        let mut b = f.encode();
+        b[0] = 0x5A;
+        assert_eq!(SampleFrame::decode(&b, 9), Err(FrameError::Sync(0x5A)));
+        let mut b = f.encode();
+        b[1] = b'Z';
+        assert_eq!(SampleFrame::decode(&b, 9), Err(FrameError::Kind(b'Z')));
+
+        for c in [
+            CommandFrame {
+                kind: KIND_COMMAND,
+                seq: 65535,
+                value: -0.75,
+                desired_m: 3e-5,
+                flags: 6,
+                aux: 812,
+                aux32: 0,
+            },
+            CommandFrame {
+                kind: KIND_BEGIN,
+                seq: 0,
+                value: 10_000.0,
+                desired_m: 0.0,
+                flags: 0,
+                aux: 0,
+                aux32: 100_000,
+            },
+            CommandFrame {
+                kind: KIND_END,
+                seq: 3,
+                value: 0.0,
+                desired_m: 0.0,
+                flags: 0,
+                aux: 8,
+                aux32: 0,
+            },
+        ] {
+            assert_eq!(CommandFrame::decode(&c.encode()), Ok(c));
+        }
+        let mut b = [0u8; COMMAND_FRAME_BYTES];
+        b[0] = SYNC;
+        b[1] = b'?';
+        assert_eq!(CommandFrame::decode(&b), Err(FrameError::Kind(b'?')));
+    }
+
+    #[test]
+    fn the_assembler_cuts_frames_and_reports_a_lost_sync_at_once() {
+        let mut a = SampleAssembler::new();
+        let f = SampleFrame {
+            seq: 1,
+            sample: Sample::Count(77),
+        }
+        .encode();
+        let mut got = None;
+        for (i, &byte) in f.iter().enumerate() {
+            got = a.push(byte);
+            assert_eq!(got.is_some(), i == SAMPLE_FRAME_BYTES - 1);
+        }
+        assert_eq!(got, Some(f));
+        assert_eq!(a.pending(), 0);
+        let bad = a
+            .push(0x00)
+            .expect("a wrong first byte is reported at once");
+        assert_eq!(
+            SampleFrame::decode(&bad, 2),
+            Err(FrameError::Sync(0x00)),
+            "decoded as a sync error"
+        );
+    }
+}

@@ -1,0 +1,743 @@
+//! `cargo xtask hil`: the virtual bench — the firmware under QEMU in lock-step with a plant
+//! program (protocol: `docs/hil.md`, frames: `magctl::link`).
+//!
+//! ```text
+//! firmware-hil (QEMU, UART0) ──TCP──► xtask bridge ──stdin──► plant program
+//!                            ◄──TCP── (log, faults) ◄─stdout──
+//! ```
+//!
+//! QEMU's UART0 connects to a TCP port this command listens on (`-serial tcp:127.0.0.1:PORT`);
+//! the bridge copies the byte streams between it and the plant program's stdin/stdout, decodes
+//! every frame into `out/hil/link.csv`, and can inject link faults. The plant is `maglab
+//! hil-plant` (the bench plant with `--effect`, sensor noise, ADC quantization) unless
+//! `--plant-cmd "PROGRAM ARGS"` names another program (run through `sh -c`).
+//!
+//! Options: `--plant-cmd CMD`, `--effect E` (repeatable, default plant only), `--noise-m X`,
+//! `--prior-history N`, `--ticks N` tracking ticks (default 10,000: one second at 10 kHz; the
+//! firmware's start-up conditioning adds its own), `--no-conditioning`, `--inverse static`,
+//! `--inject KIND@TICK` with KIND `nan` (the sample becomes a NaN in metres), `range` (an ADC count
+//! beyond the converter's range), `silent` (the bridge stops forwarding samples), `garbage` (a
+//! frame with a wrong sync byte), `--expect-exit N` (default 0), `--out DIR` (default `out/hil`).
+//! `--check` runs the set `cargo xtask test` runs (see [`check`]).
+//!
+//! Prints and writes to `summary.txt`: the firmware's exit status, ticks, the control
+//! interrupt's instructions (min / median / max, from the command frames), the tracking error
+//! (the plant's true displacement from its log when it writes one — `maglab hil-plant --log` —,
+//! and the sensor's reading otherwise), and the wall time.
+
+use crate::qemu::{build_bin, decode_defmt, firmware_dir, stats, TARGET};
+use crate::util::{display, run_checked, Ctx};
+use anyhow::{bail, ensure, Context, Result};
+use magctl::inverse::CommandFlags;
+use magctl::link::{
+    CommandFrame, Sample, SampleFrame, COMMAND_FRAME_BYTES, KIND_COMMAND, KIND_END,
+    SAMPLE_FRAME_BYTES,
+};
+use magctl::params::BAKED_PARAMETERS;
+use magctl::sensor::SensorScale;
+use std::fmt::Write as _;
+use std::io::{Read, Write};
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// QEMU's wall-clock limit for one run, s.
+const QEMU_TIMEOUT_S: &str = "300";
+/// How long the bridge waits for QEMU to connect.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(30);
+/// Header of `link.csv`.
+pub const LINK_CSV_HEADER: &str =
+    "tick,sample_kind,sample_raw,sample_m,current_a,desired_m,flags,instructions";
+
+/// A fault the bridge injects into the plant → firmware stream.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Inject {
+    /// The sample of this tick becomes NaN metres.
+    Nan(u32),
+    /// The sample of this tick becomes an ADC count beyond the converter's range.
+    Range(u32),
+    /// No sample is forwarded from this tick on.
+    Silent(u32),
+    /// This tick's frame gets a wrong sync byte.
+    Garbage(u32),
+}
+
+impl Inject {
+    fn parse(text: &str) -> Result<Self> {
+        let (kind, at) = text
+            .split_once('@')
+            .with_context(|| format!("--inject `{text}`: expected KIND@TICK"))?;
+        let at: u32 = at
+            .parse()
+            .with_context(|| format!("--inject `{text}`: tick `{at}` is not a number"))?;
+        Ok(match kind {
+            "nan" => Inject::Nan(at),
+            "range" => Inject::Range(at),
+            "silent" => Inject::Silent(at),
+            "garbage" => Inject::Garbage(at),
+            k => bail!("--inject `{text}`: unknown kind `{k}` (nan, range, silent, garbage)"),
+        })
+    }
+}
+
+/// One run's settings.
+#[derive(Debug, Clone)]
+pub struct HilRun {
+    /// External plant command (`sh -c`), or the default plant.
+    pub plant_cmd: Option<String>,
+    /// Effects of the default plant.
+    pub effects: Vec<String>,
+    /// Sensor noise of the default plant, m.
+    pub noise_m: Option<f64>,
+    /// Random prior history levels of the default plant.
+    pub prior_history: usize,
+    /// Seed of the default plant (noise, prior history).
+    pub seed: u64,
+    /// Control ticks.
+    pub ticks: u32,
+    /// `static` or `dynamic`.
+    pub inverse: String,
+    /// Injected fault.
+    pub inject: Option<Inject>,
+    /// Expected firmware exit status.
+    pub expect_exit: i32,
+    /// Run the firmware's start-up conditioning (default).
+    pub conditioning: bool,
+    /// Output directory.
+    pub out: PathBuf,
+}
+
+impl HilRun {
+    fn new(out: PathBuf) -> Self {
+        HilRun {
+            plant_cmd: None,
+            effects: Vec::new(),
+            noise_m: None,
+            prior_history: 0,
+            seed: 1,
+            ticks: 10_000,
+            inverse: "dynamic".into(),
+            inject: None,
+            expect_exit: 0,
+            conditioning: true,
+            out,
+        }
+    }
+}
+
+/// What a run produced.
+#[derive(Debug, Clone)]
+pub struct HilResult {
+    /// Command frames received.
+    pub commands: usize,
+    /// Tracking RMS and max error, % of the desired peak-to-peak, and what it was measured on.
+    pub tracking: Option<(f64, f64, &'static str)>,
+    /// Wall time of the QEMU run, s.
+    pub wall_s: f64,
+    /// The summary text.
+    pub summary: String,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct TickRow {
+    sample: Option<Sample>,
+    command: Option<CommandFrame>,
+}
+
+/// Builds `maglab` (profile `host`) and returns its path.
+fn maglab(ctx: &Ctx) -> Result<PathBuf> {
+    run_checked(ctx.cargo(&["build", "--profile", "host", "-p", "maglab", "--quiet"]))?;
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| ctx.root.join("target"));
+    let exe = target.join("host").join("maglab");
+    ensure!(exe.exists(), "{} was not built", exe.display());
+    Ok(exe)
+}
+
+/// Builds the HIL firmware and returns its ELF.
+pub fn firmware(ctx: &Ctx) -> Result<PathBuf> {
+    run_checked(build_bin(
+        ctx,
+        "firmware-hil",
+        "board-mps2-an386,panic-never",
+    ))?;
+    Ok(firmware_dir(ctx)
+        .join(TARGET)
+        .join("release")
+        .join("firmware-hil"))
+}
+
+/// Runs one lock-step co-simulation.
+pub fn run_once(
+    ctx: &Ctx,
+    elf: &Path,
+    maglab_exe: Option<&Path>,
+    run: &HilRun,
+) -> Result<HilResult> {
+    std::fs::create_dir_all(&run.out)
+        .with_context(|| format!("cannot create {}", run.out.display()))?;
+    let out_abs = run.out.canonicalize()?;
+    let plant_log = out_abs.join("plant_log.csv");
+    let _ = std::fs::remove_file(&plant_log);
+    let mut plant = match &run.plant_cmd {
+        Some(cmd) => {
+            let mut c = Command::new("sh");
+            c.args(["-c", cmd]).current_dir(&ctx.root);
+            c
+        }
+        None => {
+            let exe = maglab_exe.context("the default plant needs maglab")?;
+            let mut c = Command::new(exe);
+            c.arg("hil-plant").arg("--log").arg(&plant_log);
+            for e in &run.effects {
+                c.args(["--effect", e]);
+            }
+            if let Some(n) = run.noise_m {
+                c.args(["--noise-m", &n.to_string()]);
+            }
+            if run.prior_history > 0 {
+                c.args(["--prior-history", &run.prior_history.to_string()]);
+            }
+            c.args(["--seed", &run.seed.to_string()]);
+            c.current_dir(&ctx.root);
+            c
+        }
+    };
+    println!("$ {}", display(&plant));
+    let listener = TcpListener::bind("127.0.0.1:0").context("cannot open a local TCP port")?;
+    let port = listener.local_addr()?.port();
+    let mut semi = format!(
+        "enable=on,target=native,arg=firmware-hil,arg=ticks={}",
+        run.ticks
+    );
+    if run.inverse == "static" {
+        semi.push_str(",arg=inverse=static");
+    }
+    if !run.conditioning {
+        semi.push_str(",arg=condition=off");
+    }
+    let mut qemu = Command::new("timeout");
+    qemu.args([
+        QEMU_TIMEOUT_S,
+        "qemu-system-arm",
+        "-machine",
+        "mps2-an386",
+        "-cpu",
+        "cortex-m4",
+        "-nographic",
+        "-monitor",
+        "none",
+        "-serial",
+        &format!("tcp:127.0.0.1:{port},nodelay=on"),
+        "-semihosting-config",
+        &semi,
+        "-icount",
+        "shift=10,sleep=off",
+        "-kernel",
+    ])
+    .arg(elf)
+    .current_dir(&out_abs)
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped());
+    println!("$ {}", display(&qemu));
+    let started = Instant::now();
+    let mut qemu_child = qemu.spawn().context("cannot start qemu-system-arm")?;
+    listener.set_nonblocking(true)?;
+    let socket = loop {
+        match listener.accept() {
+            Ok((s, _)) => break s,
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                if started.elapsed() > CONNECT_TIMEOUT {
+                    let _ = qemu_child.kill();
+                    bail!("QEMU did not connect its UART within {CONNECT_TIMEOUT:?}");
+                }
+                if let Some(status) = qemu_child.try_wait()? {
+                    bail!("QEMU ended ({status}) before connecting its UART");
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            Err(e) => return Err(e).context("accepting QEMU's connection"),
+        }
+    };
+    socket.set_nonblocking(false)?;
+    socket.set_nodelay(true)?;
+    let mut plant_child = plant
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .context("cannot start the plant program")?;
+    let plant_in = plant_child.stdin.take().context("plant stdin")?;
+    let plant_out = plant_child.stdout.take().context("plant stdout")?;
+    let commands: Arc<Mutex<Vec<CommandFrame>>> = Arc::new(Mutex::new(Vec::new()));
+    let samples: Arc<Mutex<Vec<Sample>>> = Arc::new(Mutex::new(Vec::new()));
+
+    // Firmware → plant: copy, decode the command frames (the k-th `C` frame is tick k's).
+    let fw_to_plant = {
+        let mut from = socket.try_clone()?;
+        let commands = commands.clone();
+        let mut to = plant_in;
+        std::thread::spawn(move || -> Result<()> {
+            let mut buf = [0u8; COMMAND_FRAME_BYTES];
+            loop {
+                if read_full(&mut from, &mut buf)? == 0 {
+                    return Ok(());
+                }
+                let frame = CommandFrame::decode(&buf)
+                    .map_err(|e| anyhow::anyhow!("firmware sent a bad frame: {e:?}"))?;
+                if frame.kind == KIND_COMMAND {
+                    commands
+                        .lock()
+                        .map_err(|_| anyhow::anyhow!("poisoned"))?
+                        .push(frame);
+                }
+                // The plant may already be gone after a fault: ignore write errors.
+                let _ = to.write_all(&buf).and_then(|_| to.flush());
+                if frame.kind == KIND_END {
+                    return Ok(());
+                }
+            }
+        })
+    };
+    // Plant → firmware: copy, decode the sample frames, inject faults.
+    let plant_to_fw = {
+        let mut to = socket;
+        let samples = samples.clone();
+        let mut from = plant_out;
+        let inject = run.inject;
+        std::thread::spawn(move || -> Result<()> {
+            let mut buf = [0u8; SAMPLE_FRAME_BYTES];
+            let mut tick: u32 = 0;
+            loop {
+                if read_full(&mut from, &mut buf)? == 0 {
+                    return Ok(());
+                }
+                let mut frame = SampleFrame::decode(&buf, tick as u16)
+                    .map_err(|e| anyhow::anyhow!("plant sent a bad frame at tick {tick}: {e:?}"))?;
+                let mut bytes = buf;
+                match inject {
+                    Some(Inject::Silent(at)) if tick >= at => {
+                        // Keep reading so the plant is not blocked, forward nothing.
+                        tick += 1;
+                        continue;
+                    }
+                    Some(Inject::Nan(at)) if tick == at => {
+                        frame.sample = Sample::Metres(f32::NAN);
+                        bytes = frame.encode();
+                    }
+                    Some(Inject::Range(at)) if tick == at => {
+                        frame.sample = Sample::Count(u32::MAX);
+                        bytes = frame.encode();
+                    }
+                    Some(Inject::Garbage(at)) if tick == at => bytes[0] = 0x00,
+                    _ => {}
+                }
+                samples
+                    .lock()
+                    .map_err(|_| anyhow::anyhow!("poisoned"))?
+                    .push(frame.sample);
+                if to.write_all(&bytes).is_err() {
+                    return Ok(());
+                }
+                tick += 1;
+            }
+        })
+    };
+
+    let output = qemu_child.wait_with_output().context("waiting for QEMU")?;
+    let wall_s = started.elapsed().as_secs_f64();
+    let exit = output.status.code().unwrap_or(-1);
+    // QEMU is gone: its socket end is closed, the bridge threads see EOF.
+    let fw_result = fw_to_plant
+        .join()
+        .map_err(|_| anyhow::anyhow!("bridge thread panicked"))?;
+    let plant_status = wait_with_timeout(&mut plant_child, Duration::from_secs(20))?;
+    let _ = plant_to_fw.join();
+    fw_result?;
+
+    let log_lines = decode_defmt(&std::fs::read(elf)?, &output.stdout).unwrap_or_default();
+    for l in &log_lines {
+        println!("  firmware: {l}");
+    }
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if !stderr.trim().is_empty() {
+        println!("  qemu stderr: {}", stderr.trim());
+    }
+    let rows: Vec<TickRow> = {
+        let c = commands.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
+        let sm = samples.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
+        (0..c.len().max(sm.len()))
+            .map(|k| TickRow {
+                sample: sm.get(k).copied(),
+                command: c.get(k).copied(),
+            })
+            .collect()
+    };
+    write_link_csv(&out_abs.join("link.csv"), &rows)?;
+
+    let commands = rows.iter().filter(|r| r.command.is_some()).count();
+    // Tracking interrupts only (the conditioning ticks skip the inverse).
+    let instructions: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| r.command)
+        .filter(|c| c.flags & CommandFlags::CONDITIONING == 0)
+        .map(|c| c.aux as f64)
+        .collect();
+    let conditioning_ticks = commands - instructions.len();
+    ensure!(
+        !instructions.is_empty(),
+        "no tracking command came back from the firmware (exit {exit})"
+    );
+    let instr = stats(instructions);
+    let tracking = tracking_error(&plant_log, &rows)?;
+
+    let mut s = String::new();
+    writeln!(
+        s,
+        "hil: plant {}, {} ticks, {} inverse{}",
+        run.plant_cmd.clone().unwrap_or_else(|| format!(
+            "maglab hil-plant (effects: {})",
+            if run.effects.is_empty() {
+                "none".into()
+            } else {
+                run.effects.join("; ")
+            }
+        )),
+        run.ticks,
+        run.inverse,
+        run.inject
+            .map(|i| format!(", injected {i:?}"))
+            .unwrap_or_default()
+    )?;
+    writeln!(
+        s,
+        "  firmware exit {exit} (expected {}), {commands} command frames ({conditioning_ticks} start-up conditioning), plant exit {plant_status}",
+        run.expect_exit
+    )?;
+    writeln!(
+        s,
+        "  control interrupt while tracking (sensor read, trajectory, inverse, limiter, DAC frame): instructions min {:.0} median {:.0} max {:.0}",
+        instr.0, instr.1, instr.2
+    )?;
+    if let Some((rms, max, on)) = tracking {
+        writeln!(
+            s,
+            "  tracking error ({on}): RMS {rms:.3} % of peak-to-peak, max {max:.3} %"
+        )?;
+    }
+    writeln!(s, "  wall time {wall_s:.1} s")?;
+    print!("{s}");
+    std::fs::write(out_abs.join("summary.txt"), &s)?;
+    ensure!(
+        exit == run.expect_exit,
+        "firmware exit status {exit}, expected {}",
+        run.expect_exit
+    );
+    Ok(HilResult {
+        commands,
+        tracking,
+        wall_s,
+        summary: s,
+    })
+}
+
+/// Reads exactly `buf.len()` bytes; 0 at a clean end of stream.
+fn read_full(from: &mut impl Read, buf: &mut [u8]) -> Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match from.read(&mut buf[got..]) {
+            Ok(0) if got == 0 => return Ok(0),
+            Ok(0) => bail!(
+                "stream closed inside a frame ({got} of {} bytes)",
+                buf.len()
+            ),
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => return Ok(0),
+            Err(e) => return Err(e.into()),
+        }
+    }
+    Ok(got)
+}
+
+fn wait_with_timeout(child: &mut std::process::Child, limit: Duration) -> Result<String> {
+    let t0 = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait()? {
+            return Ok(status.code().map_or("signal".into(), |c| c.to_string()));
+        }
+        if t0.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Ok("killed (did not end)".into());
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+fn sample_m(scale: &SensorScale, s: Sample) -> f64 {
+    match s {
+        Sample::Count(c) => scale.displacement_m(c).map_or(f64::NAN, |m| m as f64),
+        Sample::Metres(m) => m as f64,
+    }
+}
+
+fn write_link_csv(path: &Path, rows: &[TickRow]) -> Result<()> {
+    let scale = SensorScale::new(&BAKED_PARAMETERS.sensor);
+    let mut f = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?,
+    );
+    writeln!(f, "{LINK_CSV_HEADER}")?;
+    for (k, r) in rows.iter().enumerate() {
+        let (kind, raw, m) = match r.sample {
+            Some(s @ Sample::Count(c)) => ("S", c.to_string(), sample_m(&scale, s)),
+            Some(s @ Sample::Metres(v)) => ("M", format!("{v:e}"), sample_m(&scale, s)),
+            None => ("", String::new(), f64::NAN),
+        };
+        let (i, d, fl, ins) = match r.command {
+            Some(c) => (
+                format!("{:e}", c.value),
+                format!("{:e}", c.desired_m),
+                c.flags.to_string(),
+                c.aux.to_string(),
+            ),
+            None => Default::default(),
+        };
+        writeln!(f, "{k},{kind},{raw},{m:e},{i},{d},{fl},{ins}")?;
+    }
+    f.flush()?;
+    Ok(())
+}
+
+/// RMS and max |y − ȳ| in % of ȳ's peak-to-peak over the tracking ticks (conditioning excluded): the plant's true
+/// displacement from its log when present, the next tick's sensor reading otherwise.
+fn tracking_error(plant_log: &Path, rows: &[TickRow]) -> Result<Option<(f64, f64, &'static str)>> {
+    let mut pairs: Vec<(f64, f64)> = Vec::new();
+    let on;
+    if plant_log.exists() {
+        on = "true displacement, plant log";
+        let text = std::fs::read_to_string(plant_log)?;
+        for (n, line) in text.lines().enumerate().skip(1) {
+            let cols: Vec<&str> = line.split(',').collect();
+            ensure!(
+                cols.len() == 9,
+                "{}: line {}: expected 9 columns",
+                plant_log.display(),
+                n + 1
+            );
+            let desired: f64 = cols[3].parse().with_context(|| format!("line {}", n + 1))?;
+            let y: f64 = cols[4].parse().with_context(|| format!("line {}", n + 1))?;
+            let flags: u8 = cols[7].parse().with_context(|| format!("line {}", n + 1))?;
+            if flags & CommandFlags::CONDITIONING == 0 {
+                pairs.push((desired, y));
+            }
+        }
+    } else {
+        on = "sensor reading at the period's end";
+        let scale = SensorScale::new(&BAKED_PARAMETERS.sensor);
+        for w in rows.windows(2) {
+            if let (Some(c), Some(s)) = (w[0].command, w[1].sample) {
+                if c.flags & CommandFlags::CONDITIONING != 0 {
+                    continue;
+                }
+                let y = sample_m(&scale, s);
+                if y.is_finite() {
+                    pairs.push((c.desired_m as f64, y));
+                }
+            }
+        }
+    }
+    if pairs.len() < 2 {
+        return Ok(None);
+    }
+    let (lo, hi) = pairs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
+            (l.min(p.0), h.max(p.0))
+        });
+    let p2p = hi - lo;
+    let n = pairs.len() as f64;
+    let rms = (pairs.iter().map(|(d, y)| (y - d).powi(2)).sum::<f64>() / n).sqrt();
+    let max = pairs.iter().map(|(d, y)| (y - d).abs()).fold(0.0, f64::max);
+    Ok(Some((100.0 * rms / p2p, 100.0 * max / p2p, on)))
+}
+
+/// The runs `cargo xtask test` makes (step `hil`): the default plant for one second (exit 0,
+/// tracking ≤ 1 % of the peak-to-peak on the true displacement, ≤ 30 s wall); the Python plant
+/// `host-tests/hil/first_order_plant.py` speaking the protocol (exit 0); a NaN sample (exit 7), a
+/// silent link (exit 8) and a desynchronized frame (exit 8), each ending at 0 A.
+pub fn check(ctx: &Ctx) -> Result<String> {
+    let elf = firmware(ctx)?;
+    let exe = maglab(ctx)?;
+    let base = ctx.root.join("out").join("hil");
+    let mut summary = String::new();
+
+    let default = HilRun::new(base.join("default"));
+    let r = run_once(ctx, &elf, Some(&exe), &default)?;
+    summary.push_str(&r.summary);
+    let (rms, _, _) = r
+        .tracking
+        .context("no tracking error from the default plant")?;
+    ensure!(
+        r.commands > default.ticks as usize,
+        "{} commands for {} tracking ticks and the conditioning",
+        r.commands,
+        default.ticks
+    );
+    ensure!(
+        r.wall_s <= 30.0,
+        "1 s of control took {:.1} s of wall time",
+        r.wall_s
+    );
+    ensure!(
+        rms <= 1.0,
+        "tracking RMS {rms:.3} % > 1 % on the default plant"
+    );
+
+    let mut py = HilRun::new(base.join("python"));
+    py.plant_cmd =
+        Some("python3 host-tests/hil/first_order_plant.py --params params/actuator.json".into());
+    py.ticks = 2_000;
+    let r = run_once(ctx, &elf, None, &py)?;
+    summary.push_str(&r.summary);
+    ensure!(
+        r.commands > py.ticks as usize,
+        "{} commands for {} tracking ticks and the conditioning",
+        r.commands,
+        py.ticks
+    );
+
+    // Start-up conditioning against unknown prior histories (20 random current levels within
+    // ±I_max before power-up), with and without it.
+    let mut table = String::from(
+        "start-up conditioning vs a random prior history (20 levels), 0.3 s of tracking:\n  seed  with: RMS %  max %   without: RMS %  max %\n",
+    );
+    for seed in 1..=3u64 {
+        let mut rms = [0.0f64; 2];
+        let mut max = [0.0f64; 2];
+        for (k, conditioning) in [true, false].into_iter().enumerate() {
+            let mut c = HilRun::new(base.join(format!(
+                "prior_{seed}_{}",
+                if conditioning {
+                    "conditioned"
+                } else {
+                    "unconditioned"
+                }
+            )));
+            c.ticks = 3_000;
+            c.prior_history = 20;
+            c.seed = seed;
+            c.conditioning = conditioning;
+            let r = run_once(ctx, &elf, Some(&exe), &c)?;
+            let (a, b, _) = r.tracking.context("no tracking error")?;
+            rms[k] = a;
+            max[k] = b;
+        }
+        writeln!(
+            table,
+            "  {seed:>4}  {:>10.3} {:>6.2}   {:>13.3} {:>6.2}",
+            rms[0], max[0], rms[1], max[1]
+        )?;
+        ensure!(
+            rms[0] <= 1.0,
+            "seed {seed}: tracking RMS {:.3} % > 1 % after conditioning",
+            rms[0]
+        );
+    }
+    print!("{table}");
+    summary.push_str(&table);
+
+    for (name, inject, exit) in [
+        ("nan", Inject::Nan(1_000), 7),
+        ("silent", Inject::Silent(1_000), 8),
+        ("garbage", Inject::Garbage(1_000), 8),
+    ] {
+        let mut f = HilRun::new(base.join(format!("fault_{name}")));
+        f.ticks = 2_000;
+        f.inject = Some(inject);
+        f.expect_exit = exit;
+        let r = run_once(ctx, &elf, Some(&exe), &f)?;
+        summary.push_str(&r.summary);
+        let rows = std::fs::read_to_string(f.out.join("link.csv"))?;
+        // The last tick the firmware commanded (a row may hold only a plant sample).
+        let last = rows
+            .lines()
+            .rev()
+            .find(|l| l.split(',').nth(4).is_some_and(|c| !c.is_empty()))
+            .unwrap_or_default()
+            .to_string();
+        let current: f64 = last
+            .split(',')
+            .nth(4)
+            .and_then(|c| c.parse().ok())
+            .with_context(|| format!("{name}: no current in the last link row `{last}`"))?;
+        ensure!(
+            current == 0.0,
+            "{name}: the last command is {current} A, not 0 A"
+        );
+    }
+    std::fs::write(base.join("summary.txt"), &summary)?;
+    Ok(summary)
+}
+
+/// `cargo xtask hil [options]` (module docs).
+pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
+    let mut run = HilRun::new(ctx.root.join("out").join("hil"));
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| -> Result<String> {
+            it.next()
+                .cloned()
+                .with_context(|| format!("{name} needs a value"))
+        };
+        match a.as_str() {
+            "--check" => return check(ctx).map(|_| ()),
+            "--plant-cmd" => run.plant_cmd = Some(value(a)?),
+            "--effect" => run.effects.push(value(a)?),
+            "--noise-m" => {
+                let v = value(a)?;
+                run.noise_m = Some(v.parse().with_context(|| format!("--noise-m `{v}`"))?)
+            }
+            "--prior-history" => {
+                let v = value(a)?;
+                run.prior_history = v
+                    .parse()
+                    .with_context(|| format!("--prior-history `{v}`"))?
+            }
+            "--ticks" => {
+                let v = value(a)?;
+                run.ticks = v.parse().with_context(|| format!("--ticks `{v}`"))?;
+                ensure!(run.ticks > 0, "--ticks must be > 0");
+            }
+            "--inverse" => {
+                let v = value(a)?;
+                ensure!(
+                    v == "static" || v == "dynamic",
+                    "--inverse `{v}`: static or dynamic"
+                );
+                run.inverse = v;
+            }
+            "--inject" => run.inject = Some(Inject::parse(&value(a)?)?),
+            "--expect-exit" => {
+                let v = value(a)?;
+                run.expect_exit = v.parse().with_context(|| format!("--expect-exit `{v}`"))?
+            }
+            "--out" => run.out = PathBuf::from(value(a)?),
+            "--no-conditioning" => run.conditioning = false,
+            other => bail!("unknown option `{other}` (see `cargo xtask help`)"),
+        }
+    }
+    if run.plant_cmd.is_some() && (!run.effects.is_empty() || run.noise_m.is_some()) {
+        bail!("--effect and --noise-m configure the default plant; pass them to --plant-cmd's program instead");
+    }
+    let elf = firmware(ctx)?;
+    let exe = if run.plant_cmd.is_none() {
+        Some(maglab(ctx)?)
+    } else {
+        None
+    };
+    run_once(ctx, &elf, exe.as_deref(), &run).map(|_| ())
+}
