@@ -23,6 +23,10 @@ pub const KIND_SAMPLE_COUNT: u8 = b'S';
 /// Sample-frame kind: the payload is the displacement in metres (`f32`), for a digital sensor
 /// (checked against the valid range like a scaled count; NaN or ±∞ is a sensor fault).
 pub const KIND_SAMPLE_METRES: u8 = b'M';
+/// Programme-frame kind (bench host → firmware, measurement mode): the current to play this tick,
+/// `f32` A. Sent by the bench host (`cargo xtask hil --measure`) before each sample frame, never
+/// by a plant.
+pub const KIND_PROGRAMME: u8 = b'R';
 /// Command-frame kind: the firmware starts a run; payload `f32` = control rate, Hz; `aux` = the
 /// number of ticks it will run.
 pub const KIND_BEGIN: u8 = b'B';
@@ -101,6 +105,46 @@ impl SampleFrame {
     }
 }
 
+/// A programme frame (bench host → firmware, measurement mode): the current of one tick of an
+/// identification programme.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProgrammeFrame {
+    /// Tick modulo 2¹⁶.
+    pub seq: u16,
+    /// The current to play, A.
+    pub current_a: f32,
+}
+
+impl ProgrammeFrame {
+    /// Encodes the frame (the bench host's side).
+    pub fn encode(&self) -> [u8; SAMPLE_FRAME_BYTES] {
+        let s = self.seq.to_le_bytes();
+        let c = self.current_a.to_le_bytes();
+        [SYNC, KIND_PROGRAMME, s[0], s[1], c[0], c[1], c[2], c[3]]
+    }
+
+    /// Decodes a frame and checks its sequence number (the firmware's side).
+    pub fn decode(b: &[u8; SAMPLE_FRAME_BYTES], expected_seq: u16) -> Result<Self, FrameError> {
+        if b[0] != SYNC {
+            return Err(FrameError::Sync(b[0]));
+        }
+        if b[1] != KIND_PROGRAMME {
+            return Err(FrameError::Kind(b[1]));
+        }
+        let seq = u16::from_le_bytes([b[2], b[3]]);
+        if seq != expected_seq {
+            return Err(FrameError::Sequence {
+                expected: expected_seq,
+                got: seq,
+            });
+        }
+        Ok(ProgrammeFrame {
+            seq,
+            current_a: f32::from_le_bytes([b[4], b[5], b[6], b[7]]),
+        })
+    }
+}
+
 /// A command frame (firmware → plant).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CommandFrame {
@@ -110,7 +154,9 @@ pub struct CommandFrame {
     pub seq: u16,
     /// `C`: current to hold over the coming period, A. `B`: control rate, Hz. `E`: 0.
     pub value: f32,
-    /// `C`: the desired displacement at the end of the coming period, m (for the plant's log).
+    /// `C`: the desired displacement at the end of the coming period, m (for the plant's log);
+    /// in measurement mode (flag `MEASURE`) the firmware's reading of this tick's sample, m (NaN
+    /// if it was rejected).
     pub desired_m: f32,
     /// `C`: the command's flags (`inverse::CommandFlags` bits).
     pub flags: u8,
@@ -240,10 +286,23 @@ mod tests {
             }) => assert!(m.is_nan()),
             other => panic!("{other:?}"),
         }
+        let p = ProgrammeFrame {
+            seq: 4,
+            current_a: -1.25,
+        };
+        assert_eq!(ProgrammeFrame::decode(&p.encode(), 4), Ok(p));
+        assert_eq!(
+            SampleFrame::decode(&p.encode(), 4),
+            Err(FrameError::Kind(KIND_PROGRAMME))
+        );
         let f = SampleFrame {
             seq: 9,
             sample: Sample::Count(1),
         };
+        assert_eq!(
+            ProgrammeFrame::decode(&f.encode(), 9),
+            Err(FrameError::Kind(KIND_SAMPLE_COUNT))
+        );
         assert_eq!(
             SampleFrame::decode(&f.encode(), 10),
             Err(FrameError::Sequence {

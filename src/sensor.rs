@@ -54,6 +54,17 @@ impl SensorScale {
         self.check_m(self.offset_m + self.gain_m_per_count * count as f32)
     }
 
+    /// The reading of an ADC count, m, checked only against the converter's range (not the valid
+    /// range): what a measurement records, since identification drives the rod over its whole
+    /// stroke.
+    #[inline]
+    pub fn reading_m(&self, count: u32) -> Result<f32, SensorFault> {
+        if count > self.max_count {
+            return Err(SensorFault::CountOutOfRange);
+        }
+        Ok(self.offset_m + self.gain_m_per_count * count as f32)
+    }
+
     /// Checks a reading already in metres (a virtual sensor, a link), m, or the fault.
     #[inline]
     pub fn check_m(&self, displacement_m: f32) -> Result<f32, SensorFault> {

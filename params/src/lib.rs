@@ -69,15 +69,17 @@ pub fn paper_defaults() -> ActuatorParams {
             coil_resistance_ohm: 5.8,
             coil_inductance_h: 8.0e-3,
         },
-        // An example sensor (measure your own): a 0-50 µm displacement sensor on a 12-bit ADC
-        // (12.2 nm per count); its two rails (0 and 4095 counts, a saturated or disconnected
-        // sensor) lie outside the valid range; 20 µs of conversion and filter delay.
+        // An example sensor (measure your own): a 0-80 µm displacement sensor on a 12-bit ADC
+        // (19.5 nm per count), covering the rod's full stroke λ_s·L = 67.4 µm (identification
+        // and the start-up conditioning drive the rod to saturation); its two rails (0 and 4095
+        // counts, a saturated or disconnected sensor) lie outside the valid range; 20 µs of
+        // conversion and filter delay.
         sensor: Sensor {
             adc_bits: 12,
-            gain_m_per_count: 50.0e-6 / 4095.0,
+            gain_m_per_count: 80.0e-6 / 4095.0,
             offset_m: 0.0,
             valid_min_m: 0.5e-6,
-            valid_max_m: 49.5e-6,
+            valid_max_m: 79.5e-6,
             sample_delay_s: 20.0e-6,
         },
         trajectory: Trajectory {

@@ -36,8 +36,16 @@
 //! rod's memory is the one the controller assumes whatever its history; those commands carry the
 //! `CONDITIONING` flag (32). `condition=off` skips it (to measure what it is worth).
 //!
-//! Command line (semihosting): `ticks=N` tracking ticks (default: one second at the control
-//! rate), `inverse=static` (default dynamic), `condition=off`.
+//! **Measurement mode** (`mode=measure`): instead of tracking, the firmware plays an
+//! identification programme streamed by the bench host — a programme frame (`R`, the current
+//! of the tick) before every sample frame — through the output limiter to the DAC, and returns
+//! in each command frame the current it applied and its own reading of the tick's sample (in
+//! metres, checked against the ADC's range only: identification drives the rod over its whole
+//! stroke), flagged `MEASURE` (64). The host writes the dataset folder (`cargo xtask hil
+//! --measure`). No conditioning: the programme carries its own.
+//!
+//! Command line (semihosting): `ticks=N` tracking or programme ticks (default: one second at the
+//! control rate), `inverse=static` (default dynamic), `condition=off`, `mode=measure`.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 
@@ -69,8 +77,8 @@ mod firmware {
         CommandFlags, Conditioning, ConditioningState, ControlLoop, InverseKind, LoopState,
     };
     use magctl::link::{
-        CommandFrame, Sample, SampleAssembler, SampleFrame, KIND_BEGIN, KIND_COMMAND, KIND_END,
-        KIND_SAMPLE_COUNT, KIND_SAMPLE_METRES,
+        CommandFrame, ProgrammeFrame, Sample, SampleAssembler, SampleFrame, KIND_BEGIN,
+        KIND_COMMAND, KIND_END, KIND_SAMPLE_COUNT, KIND_SAMPLE_METRES,
     };
     use magctl::output::{CurrentOutput, DacScale, SpiDac};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
@@ -106,6 +114,8 @@ mod firmware {
     struct App {
         control: ControlLoop<'static>,
         kind: InverseKind,
+        /// Measurement mode: play the streamed programme instead of tracking.
+        measure: bool,
         state: LoopState<CAPACITY>,
         /// The start-up conditioning sequence, while it runs.
         conditioning: Option<(Conditioning, ConditioningState)>,
@@ -119,6 +129,8 @@ mod firmware {
     /// payload's bits.
     static SAMPLE_KIND: AtomicU8 = AtomicU8::new(0);
     static SAMPLE_BITS: AtomicU32 = AtomicU32::new(0);
+    /// The programme's current of the coming tick (measurement mode), f32 bits.
+    static PROGRAMME_BITS: AtomicU32 = AtomicU32::new(0);
     /// The command of the last tick (interrupt → thread mode).
     static OUT_CURRENT_BITS: AtomicU32 = AtomicU32::new(0);
     static OUT_DESIRED_BITS: AtomicU32 = AtomicU32::new(0);
@@ -145,16 +157,18 @@ mod firmware {
         };
         let bits = SAMPLE_BITS.load(Ordering::Relaxed);
         let sensor = app.control.sensor();
-        let sample = match SAMPLE_KIND.load(Ordering::Acquire) {
-            KIND_SAMPLE_COUNT => sensor.displacement_m(bits),
-            KIND_SAMPLE_METRES => sensor.check_m(f32::from_bits(bits)),
-            _ => Err(SensorFault::Missing),
-        };
-        let out = match &mut app.conditioning {
-            Some((c, seq)) if !seq.done() => {
-                app.control.condition_sensed(c, seq, &mut app.state, sample)
-            }
-            _ => app.control.tick_sensed(app.kind, &mut app.state, sample),
+        let kind = SAMPLE_KIND.load(Ordering::Acquire);
+        let out = if app.measure {
+            let reading = match kind {
+                KIND_SAMPLE_COUNT => sensor.reading_m(bits),
+                KIND_SAMPLE_METRES => Ok(f32::from_bits(bits)),
+                _ => Err(SensorFault::Missing),
+            };
+            let programme_a = f32::from_bits(PROGRAMME_BITS.load(Ordering::Relaxed));
+            app.control
+                .measure_sensed(&mut app.state, programme_a, reading)
+        } else {
+            tracking_tick(app, kind, bits)
         };
         if app.dac.write_current(out.current_a).is_err() {
             app.spi_timeouts = app.spi_timeouts.saturating_add(1);
@@ -168,6 +182,41 @@ mod firmware {
         OUT_FLAGS.store(out.flags.0, Ordering::Relaxed);
         OUT_INSTRUCTIONS.store(instructions, Ordering::Relaxed);
         OUT_READY.store(true, Ordering::Release);
+    }
+
+    /// One tracking tick (conditioning first while it runs) on the sample of kind `kind`.
+    #[inline(always)]
+    fn tracking_tick(app: &mut App, kind: u8, bits: u32) -> magctl::inverse::TickOutput {
+        let sensor = app.control.sensor();
+        let sample = match kind {
+            KIND_SAMPLE_COUNT => sensor.displacement_m(bits),
+            KIND_SAMPLE_METRES => sensor.check_m(f32::from_bits(bits)),
+            _ => Err(SensorFault::Missing),
+        };
+        match &mut app.conditioning {
+            Some((c, seq)) if !seq.done() => {
+                app.control.condition_sensed(c, seq, &mut app.state, sample)
+            }
+            _ => app.control.tick_sensed(app.kind, &mut app.state, sample),
+        }
+    }
+
+    /// Receives the programme frame of tick `seq` (measurement mode; bounded wait).
+    fn receive_programme(
+        uart: &mut CmsdkUart,
+        assembler: &mut SampleAssembler,
+        seq: u16,
+    ) -> Result<f32, ()> {
+        for _ in 0..MAX_LINK_POLLS {
+            if let Some(byte) = uart.try_read() {
+                if let Some(frame) = assembler.push(byte) {
+                    return ProgrammeFrame::decode(&frame, seq)
+                        .map(|f| f.current_a)
+                        .map_err(|_| ());
+                }
+            }
+        }
+        Err(())
     }
 
     /// Receives the sample frame of tick `seq` (bounded wait).
@@ -257,7 +306,8 @@ mod firmware {
         let n = semihosting::command_line(&mut line_buf);
         let line = line_buf.get(..n).unwrap_or(&[]);
         let tracking_ticks = arg_u32(line, b"ticks=").unwrap_or(rate_hz as u32);
-        let condition = !line.windows(13).any(|w| w == b"condition=off");
+        let measure = line.windows(12).any(|w| w == b"mode=measure");
+        let condition = !measure && !line.windows(13).any(|w| w == b"condition=off");
         let kind = if line.windows(14).any(|w| w == b"inverse=static") {
             InverseKind::Static
         } else {
@@ -305,9 +355,10 @@ mod firmware {
             conditioning.map_or(0, |(c, _)| c.ticks(0.0, state.core.last_current_a));
         let ticks = tracking_ticks.saturating_add(conditioning_ticks);
         defmt::info!(
-            "firmware-hil: {=u32} conditioning + {=u32} tracking ticks at {=f32} Hz, {=str} inverse, lock-step over UART0",
+            "firmware-hil: {=u32} conditioning + {=u32} {=str} ticks at {=f32} Hz, {=str} inverse, lock-step over UART0",
             conditioning_ticks,
             tracking_ticks,
+            if measure { "measurement" } else { "tracking" },
             rate_hz,
             if kind == InverseKind::Dynamic {
                 "dynamic"
@@ -318,6 +369,7 @@ mod firmware {
         let app = App {
             control,
             kind,
+            measure,
             state,
             conditioning,
             dac,
@@ -357,6 +409,12 @@ mod firmware {
         };
         while tick < ticks || (link_fault_at.is_some() && !ramp_done && tick < ticks + ramp_ticks) {
             let seq = tick as u16;
+            if measure && link_fault_at.is_none() {
+                match receive_programme(&mut uart, &mut assembler, seq) {
+                    Ok(i) => PROGRAMME_BITS.store(i.to_bits(), Ordering::Relaxed),
+                    Err(()) => link_fault_at = Some(tick),
+                }
+            }
             let sample = if link_fault_at.is_none() {
                 match receive(&mut uart, &mut assembler, seq) {
                     Ok(frame) => Some(frame.sample),

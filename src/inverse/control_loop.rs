@@ -394,6 +394,64 @@ impl<'m> ControlLoop<'m> {
         }
     }
 
+    /// One tick of a measurement programme (identification data taken by the firmware itself):
+    /// the programme's current goes through the output limiter (±I_max, slew, NaN held) to the
+    /// coil; `reading` is the sample in metres checked only for being a reading at all (count
+    /// within the ADC's range, finite: [`SensorScale::reading_m`]) — a missing or impossible
+    /// sample latches the fault and the coil ramps to 0 A, as in [`ControlLoop::tick_sensed`].
+    /// The output's `desired.displacement_m` carries the reading (NaN after a fault), flagged
+    /// `MEASURE`. The trajectory does not advance.
+    #[inline]
+    pub fn measure_sensed<const N: usize>(
+        &self,
+        state: &mut LoopState<N>,
+        programme_current_a: f32,
+        reading: Result<f32, SensorFault>,
+    ) -> TickOutput {
+        let core = &mut state.core;
+        let reading_m = match reading {
+            Ok(y) if y.is_finite() => y,
+            Ok(_) | Err(_) => {
+                let fault = match reading {
+                    Err(f) => f,
+                    Ok(_) => SensorFault::NotFinite,
+                };
+                core.counters.sensor_faults = core.counters.sensor_faults.wrapping_add(1);
+                if core.sensor_fault.is_none() {
+                    core.sensor_fault = Some(fault);
+                }
+                f32::NAN
+            }
+        };
+        let (current_a, flags) = if core.sensor_fault.is_some() {
+            self.limiter.ramp_to_zero(&mut core.last_current_a)
+        } else {
+            let raw = Ok(RawCommand {
+                current_a: programme_current_a,
+                h_a_per_m: 0.0,
+                m_a_per_m: 0.0,
+                clamped: false,
+            });
+            self.limiter.apply(&mut core.last_current_a, &raw)
+        };
+        core.measured_m = reading_m;
+        TickOutput {
+            desired: DesiredMotion {
+                displacement_m: if core.sensor_fault.is_some() {
+                    f32::NAN
+                } else {
+                    reading_m
+                },
+                velocity_m_per_s: 0.0,
+                acceleration_m_per_s2: 0.0,
+            },
+            current_a,
+            h_a_per_m: core.memory.h_a_per_m,
+            m_a_per_m: core.memory.m_a_per_m,
+            flags: CommandFlags(flags.0 | CommandFlags::MEASURE),
+        }
+    }
+
     /// One interrupt with the naive baseline inverse (bisection over the cell-sum forward).
     #[inline(never)]
     pub fn tick_naive<const N: usize>(
@@ -629,5 +687,30 @@ mod tests {
             OutputLimiter::new(&c).unwrap_err().field,
             "control.current_limit_a"
         );
+    }
+
+    #[test]
+    fn a_measurement_tick_plays_the_programme_through_the_limiter_and_returns_the_reading() {
+        let control = ControlLoop::new(&BAKED_MEASURE, &BAKED_PARAMETERS).unwrap();
+        let step = control.limiter().max_step_a();
+        let mut state: LoopState<64> = control.init(InverseKind::Dynamic);
+        state.core.last_current_a = 0.0;
+        // A jump of 1 A is slew-limited; the reading (beyond the valid range: the full stroke) is
+        // returned as it is, flagged MEASURE.
+        let out = control.measure_sensed(&mut state, 1.0, Ok(70e-6));
+        assert_eq!(out.current_a, step);
+        assert_eq!(out.desired.displacement_m, 70e-6);
+        assert!(out.flags.has(CommandFlags::MEASURE));
+        assert!(out.flags.has(CommandFlags::SLEW_LIMITED));
+        // A non-finite reading latches the fault: NaN reading, ramp to 0 A, flagged.
+        let out = control.measure_sensed(&mut state, 1.0, Ok(f32::NAN));
+        assert!(out.desired.displacement_m.is_nan());
+        assert!(out.flags.has(CommandFlags::SENSOR_FAULT));
+        assert_eq!(out.current_a, 0.0);
+        assert_eq!(state.core.sensor_fault, Some(SensorFault::NotFinite));
+        // Latched: a good sample later does not resume the programme.
+        let out = control.measure_sensed(&mut state, 1.0, Ok(20e-6));
+        assert_eq!(out.current_a, 0.0);
+        assert!(out.flags.has(CommandFlags::SENSOR_FAULT));
     }
 }

@@ -34,6 +34,8 @@ impl CommandFlags {
     pub const SENSOR_FAULT: u8 = 16;
     /// The command belongs to the start-up conditioning sequence, not to tracking.
     pub const CONDITIONING: u8 = 32;
+    /// The command plays a measurement programme (`ControlLoop::measure_sensed`).
+    pub const MEASURE: u8 = 64;
 
     /// Whether `flag` is set.
     pub fn has(self, flag: u8) -> bool {

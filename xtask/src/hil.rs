@@ -30,7 +30,7 @@ use crate::util::{display, run_checked, Ctx};
 use anyhow::{bail, ensure, Context, Result};
 use magctl::inverse::CommandFlags;
 use magctl::link::{
-    CommandFrame, Sample, SampleFrame, COMMAND_FRAME_BYTES, KIND_COMMAND, KIND_END,
+    CommandFrame, ProgrammeFrame, Sample, SampleFrame, COMMAND_FRAME_BYTES, KIND_COMMAND, KIND_END,
     SAMPLE_FRAME_BYTES,
 };
 use magctl::params::BAKED_PARAMETERS;
@@ -105,6 +105,13 @@ pub struct HilRun {
     pub expect_exit: i32,
     /// Run the firmware's start-up conditioning (default).
     pub conditioning: bool,
+    /// Parameter file of the default plant (default: the baked parameters).
+    pub plant_params: Option<PathBuf>,
+    /// Measurement mode: the programme to stream and where to write the dataset folder.
+    pub measure: Option<(Arc<Programme>, PathBuf)>,
+    /// Firmware ELF to run instead of the default build (e.g. one baked with identified
+    /// parameters).
+    pub elf: Option<PathBuf>,
     /// Output directory.
     pub out: PathBuf,
 }
@@ -122,6 +129,9 @@ impl HilRun {
             inject: None,
             expect_exit: 0,
             conditioning: true,
+            plant_params: None,
+            measure: None,
+            elf: None,
             out,
         }
     }
@@ -194,6 +204,9 @@ pub fn run_once(
             let exe = maglab_exe.context("the default plant needs maglab")?;
             let mut c = Command::new(exe);
             c.arg("hil-plant").arg("--log").arg(&plant_log);
+            if let Some(p) = &run.plant_params {
+                c.arg("--params").arg(ctx.root.join(p));
+            }
             for e in &run.effects {
                 c.args(["--effect", e]);
             }
@@ -211,10 +224,15 @@ pub fn run_once(
     println!("$ {}", display(&plant));
     let listener = TcpListener::bind("127.0.0.1:0").context("cannot open a local TCP port")?;
     let port = listener.local_addr()?.port();
-    let mut semi = format!(
-        "enable=on,target=native,arg=firmware-hil,arg=ticks={}",
-        run.ticks
-    );
+    let elf = run.elf.as_deref().unwrap_or(elf);
+    let ticks = match &run.measure {
+        Some((p, _)) => p.current_a.len() as u32,
+        None => run.ticks,
+    };
+    let mut semi = format!("enable=on,target=native,arg=firmware-hil,arg=ticks={ticks}");
+    if run.measure.is_some() {
+        semi.push_str(",arg=mode=measure");
+    }
     if run.inverse == "static" {
         semi.push_str(",arg=inverse=static");
     }
@@ -310,6 +328,7 @@ pub fn run_once(
         let samples = samples.clone();
         let mut from = plant_out;
         let inject = run.inject;
+        let programme = run.measure.as_ref().map(|(p, _)| p.clone());
         std::thread::spawn(move || -> Result<()> {
             let mut buf = [0u8; SAMPLE_FRAME_BYTES];
             let mut tick: u32 = 0;
@@ -341,6 +360,17 @@ pub fn run_once(
                     .lock()
                     .map_err(|_| anyhow::anyhow!("poisoned"))?
                     .push(frame.sample);
+                if let Some(p) = &programme {
+                    // Measurement mode: the programme's current of this tick goes first.
+                    let current_a = p.current_a.get(tick as usize).copied().unwrap_or(0.0);
+                    let r = ProgrammeFrame {
+                        seq: tick as u16,
+                        current_a,
+                    };
+                    if to.write_all(&r.encode()).is_err() {
+                        return Ok(());
+                    }
+                }
                 if to.write_all(&bytes).is_err() {
                     return Ok(());
                 }
@@ -379,6 +409,12 @@ pub fn run_once(
             .collect()
     };
     write_link_csv(&out_abs.join("link.csv"), &rows)?;
+    if let Some((programme, dir)) = &run.measure {
+        if exit == 0 {
+            write_dataset(programme, &rows, dir)?;
+            println!("  wrote the dataset folder {}", dir.display());
+        }
+    }
 
     let commands = rows.iter().filter(|r| r.command.is_some()).count();
     // Tracking interrupts only (the conditioning ticks skip the inverse).
@@ -399,17 +435,24 @@ pub fn run_once(
     let mut s = String::new();
     writeln!(
         s,
-        "hil: plant {}, {} ticks, {} inverse{}",
+        "hil: plant {}, {}{}",
         run.plant_cmd.clone().unwrap_or_else(|| format!(
-            "maglab hil-plant (effects: {})",
+            "maglab hil-plant ({}effects: {})",
+            run.plant_params
+                .as_ref()
+                .map(|p| format!("{}, ", p.display()))
+                .unwrap_or_default(),
             if run.effects.is_empty() {
                 "none".into()
             } else {
                 run.effects.join("; ")
             }
         )),
-        run.ticks,
-        run.inverse,
+        if run.measure.is_some() {
+            format!("measurement programme of {ticks} ticks")
+        } else {
+            format!("{} tracking ticks, {} inverse", run.ticks, run.inverse)
+        },
         run.inject
             .map(|i| format!(", injected {i:?}"))
             .unwrap_or_default()
@@ -421,8 +464,15 @@ pub fn run_once(
     )?;
     writeln!(
         s,
-        "  control interrupt while tracking (sensor read, trajectory, inverse, limiter, DAC frame): instructions min {:.0} median {:.0} max {:.0}",
-        instr.0, instr.1, instr.2
+        "  control interrupt {} instructions min {:.0} median {:.0} max {:.0}",
+        if run.measure.is_some() {
+            "(sample read, programme current through the limiter, DAC frame):"
+        } else {
+            "while tracking (sensor read, trajectory, inverse, limiter, DAC frame):"
+        },
+        instr.0,
+        instr.1,
+        instr.2
     )?;
     if let Some((rms, max, on)) = tracking {
         writeln!(
@@ -533,7 +583,7 @@ fn tracking_error(plant_log: &Path, rows: &[TickRow]) -> Result<Option<(f64, f64
             let desired: f64 = cols[3].parse().with_context(|| format!("line {}", n + 1))?;
             let y: f64 = cols[4].parse().with_context(|| format!("line {}", n + 1))?;
             let flags: u8 = cols[7].parse().with_context(|| format!("line {}", n + 1))?;
-            if flags & CommandFlags::CONDITIONING == 0 {
+            if flags & (CommandFlags::CONDITIONING | CommandFlags::MEASURE) == 0 {
                 pairs.push((desired, y));
             }
         }
@@ -542,7 +592,7 @@ fn tracking_error(plant_log: &Path, rows: &[TickRow]) -> Result<Option<(f64, f64
         let scale = SensorScale::new(&BAKED_PARAMETERS.sensor);
         for w in rows.windows(2) {
             if let (Some(c), Some(s)) = (w[0].command, w[1].sample) {
-                if c.flags & CommandFlags::CONDITIONING != 0 {
+                if c.flags & (CommandFlags::CONDITIONING | CommandFlags::MEASURE) != 0 {
                     continue;
                 }
                 let y = sample_m(&scale, s);
@@ -565,6 +615,239 @@ fn tracking_error(plant_log: &Path, rows: &[TickRow]) -> Result<Option<(f64, f64
     let rms = (pairs.iter().map(|(d, y)| (y - d).powi(2)).sum::<f64>() / n).sqrt();
     let max = pairs.iter().map(|(d, y)| (y - d).abs()).fold(0.0, f64::max);
     Ok(Some((100.0 * rms / p2p, 100.0 * max / p2p, on)))
+}
+
+/// An identification programme: every tick's current and the experiments it records.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Programme {
+    /// Current of every tick, A (conditioning included).
+    pub current_a: Vec<f32>,
+    /// Recorded experiments: file stem, description, first tick, ticks.
+    pub experiments: Vec<(String, String, usize, usize)>,
+}
+
+/// FORC sweep rate of the measurement programme (a full-range triangle at this rate), Hz.
+pub const MEASURE_FORC_HZ: f64 = 2.0;
+/// Sine frequencies of the measurement programme, Hz.
+pub const MEASURE_SINE_HZ: [f64; 6] = [20.0, 50.0, 100.0, 200.0, 300.0, 400.0];
+/// Sine amplitudes, A (every frequency at every amplitude), around [`MEASURE_BIAS_A`].
+pub const MEASURE_SINE_AMPLITUDES_A: [f64; 3] = [0.15, 0.3, 0.45];
+/// DC bias of the sines, A.
+pub const MEASURE_BIAS_A: f64 = 0.55;
+/// Duration of each sine, s.
+pub const MEASURE_SINE_S: f64 = 0.2;
+
+/// The identification programme `maglab identify` needs, built from the *nominal* (baked)
+/// parameters — all a bench user knows before identifying: the quasi-static FORC sweep of
+/// `maglab excite` (`maglab_identify::excite`, 5 % beyond the grid at both ends, clipped to the
+/// current limit by the firmware's limiter) and biased sines, each experiment preceded by the
+/// firmware's start-up conditioning sequence (`magctl::inverse::Conditioning`: negative
+/// saturation, then slowly to the experiment's first current — the start state
+/// `negative-saturation` of `dataset.json`).
+pub fn identification_programme() -> Result<Programme> {
+    let p = &BAKED_PARAMETERS;
+    let measure = &magctl::params::BAKED_MEASURE;
+    let rate_hz = p.control.sample_rate_hz as f64;
+    let forc = maglab_identify::excite::forc_excitation(&maglab_identify::excite::ExciteOptions {
+        h_min_a_per_m: measure.h_min_a_per_m() as f64,
+        h_max_a_per_m: measure.h_max_a_per_m() as f64,
+        coil_factor_per_m: p.actuator.coil_factor_per_m as f64,
+        sweep_rate_hz: MEASURE_FORC_HZ,
+        sample_rate_hz: rate_hz,
+        overdrive: 0.05,
+    })
+    .map_err(|e| anyhow::anyhow!("FORC programme: {e}"))?;
+    let mut experiments: Vec<(String, String, Vec<f64>)> = vec![(
+        "00_forc".into(),
+        format!("FORC reversal sweep, {MEASURE_FORC_HZ} Hz full-range triangle rate"),
+        forc.current_a,
+    )];
+    let n = (MEASURE_SINE_S * rate_hz).round() as usize;
+    for &f in &MEASURE_SINE_HZ {
+        for &a in &MEASURE_SINE_AMPLITUDES_A {
+            let k = experiments.len();
+            experiments.push((
+                format!("{k:02}_sine_{f:07.1}hz_amp{a:.3}a_bias{MEASURE_BIAS_A:.3}a"),
+                format!("sine {f} Hz, {MEASURE_BIAS_A} ± {a} A"),
+                (0..n)
+                    .map(|i| {
+                        MEASURE_BIAS_A
+                            + a * (2.0 * std::f64::consts::PI * f * i as f64 / rate_hz).sin()
+                    })
+                    .collect(),
+            ));
+        }
+    }
+    let limiter = magctl::inverse::OutputLimiter::new(&p.control)
+        .map_err(|e| anyhow::anyhow!("control settings: {e:?}"))?;
+    let conditioning = magctl::inverse::Conditioning::new(
+        &limiter,
+        p.actuator.coil_factor_per_m,
+        measure.h_min_a_per_m(),
+        p.control.sample_rate_hz,
+    )
+    .map_err(|e| anyhow::anyhow!("conditioning: {e:?}"))?;
+    let mut prog = Programme {
+        current_a: Vec::new(),
+        experiments: Vec::new(),
+    };
+    let mut last = 0.0f32;
+    for (name, description, currents) in experiments {
+        // The limiter clips the FORC's overshoot to ±I_max: start from what the coil will get.
+        let first = (currents[0] as f32).clamp(-limiter.limit_a(), limiter.limit_a());
+        let mut seq = conditioning.start(last, first);
+        while !seq.done() {
+            prog.current_a.push(conditioning.step(&mut seq));
+        }
+        let start = prog.current_a.len();
+        prog.current_a.extend(currents.iter().map(|&i| i as f32));
+        last = *prog.current_a.last().unwrap_or(&0.0);
+        prog.experiments
+            .push((name, description, start, currents.len()));
+    }
+    Ok(prog)
+}
+
+/// Writes the dataset folder of a measurement run: one `t_s,current_a,displacement_m` file per
+/// experiment (the current the firmware applied and its reading of the tick's sample) and
+/// `dataset.json` (start state `negative-saturation`, the excitation of each file).
+fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path) -> Result<()> {
+    use maglab_identify::dataset_info::{DatasetInfo, FileInfo, StartState};
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let rate_hz = BAKED_PARAMETERS.control.sample_rate_hz as f64;
+    let mut info = DatasetInfo {
+        start_state: Some(StartState::NegativeSaturation),
+        files: Default::default(),
+    };
+    for (name, description, start, len) in &programme.experiments {
+        let mut t = Vec::with_capacity(*len);
+        let mut i = Vec::with_capacity(*len);
+        let mut y = Vec::with_capacity(*len);
+        for k in 0..*len {
+            let c = rows
+                .get(start + k)
+                .and_then(|r| r.command)
+                .with_context(|| format!("{name}: no command frame for tick {}", start + k))?;
+            ensure!(
+                c.flags & CommandFlags::MEASURE != 0 && c.desired_m.is_finite(),
+                "{name}: tick {} has no valid reading (flags {})",
+                start + k,
+                c.flags
+            );
+            t.push(k as f64 / rate_hz);
+            i.push(c.value as f64);
+            y.push(c.desired_m as f64);
+        }
+        let file = format!("{name}.csv");
+        maglab_identify::data::write_measurement(&dir.join(&file), &t, &i, &y)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        info.files.insert(
+            file,
+            FileInfo {
+                start_state: None,
+                excitation: Some(description.clone()),
+            },
+        );
+    }
+    info.write(dir).map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Measure → identify → bake → track on a plant whose parameters are not the baked ones
+/// (`host-tests/hil/other_actuator.json`: R_eddy +25 %, ξ −20 %, f0 +15 %, another Preisach
+/// measure). Returns the summary lines; fails unless tracking with the identified parameters is
+/// ≤ 1 % of the peak-to-peak and ≥ 5× better than with the defaults.
+pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<String> {
+    let plant = PathBuf::from("host-tests/hil/other_actuator.json");
+    let data = base.join("data");
+    let _ = std::fs::remove_dir_all(&data);
+    let programme = Arc::new(identification_programme()?);
+    let mut m = HilRun::new(base.join("measure"));
+    m.plant_params = Some(plant.clone());
+    m.measure = Some((programme.clone(), data.clone()));
+    let r = run_once(ctx, elf, Some(exe), &m)?;
+    let mut s = r.summary.clone();
+    let identified = base.join("identified.json");
+    let started = Instant::now();
+    let mut id = Command::new(exe);
+    id.arg("identify")
+        .arg(&data)
+        .arg("-o")
+        .arg(&identified)
+        .arg("--params")
+        .arg(ctx.root.join("params/actuator.json"))
+        .arg("--plot-dir")
+        .arg(base.join("plots"))
+        .current_dir(&ctx.root);
+    run_checked(id)?;
+    let identify_s = started.elapsed().as_secs_f64();
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&identified)?)?;
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(ctx.root.join(&plant))?)?;
+    let nominal: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
+        ctx.root.join("params/actuator.json"),
+    )?)?;
+    writeln!(
+        s,
+        "end to end: {} ticks measured ({} experiments), identify {identify_s:.0} s",
+        programme.current_a.len(),
+        programme.experiments.len()
+    )?;
+    writeln!(
+        s,
+        "  constant             nominal (baked)   plant   identified"
+    )?;
+    for key in ["eddy_resistance_ohm", "damping_ratio", "resonance_hz"] {
+        let v = |j: &serde_json::Value| j["actuator"][key].as_f64().unwrap_or(f64::NAN);
+        writeln!(
+            s,
+            "  {key:<20} {:>15.4} {:>7.4} {:>12.4} ({:+.1} %)",
+            v(&nominal),
+            v(&truth),
+            v(&json),
+            100.0 * (v(&json) / v(&truth) - 1.0)
+        )?;
+    }
+    // Re-bake: the same firmware built with the identified file.
+    let mut build = build_bin(ctx, "firmware-hil", "board-mps2-an386,panic-never");
+    let identified_target = ctx.root.join("target").join("firmware-identified");
+    build
+        .env("ACTUATOR_PARAMS", identified.canonicalize()?)
+        .env("CARGO_TARGET_DIR", &identified_target);
+    run_checked(build)?;
+    let identified_elf = identified_target
+        .join(TARGET)
+        .join("release")
+        .join("firmware-hil");
+    let mut rms = [0.0f64; 2];
+    for (k, (name, fw)) in [("default", None), ("identified", Some(identified_elf))]
+        .into_iter()
+        .enumerate()
+    {
+        let mut t = HilRun::new(base.join(format!("track_{name}")));
+        t.plant_params = Some(plant.clone());
+        t.elf = fw;
+        let r = run_once(ctx, elf, Some(exe), &t)?;
+        let (a, b, _) = r.tracking.context("no tracking error")?;
+        rms[k] = a;
+        writeln!(
+            s,
+            "  tracking on that plant, firmware baked with the {name} parameters: RMS {a:.3} %, max {b:.2} % of peak-to-peak"
+        )?;
+    }
+    writeln!(s, "  default / identified: {:.1}x", rms[0] / rms[1])?;
+    print!("{s}");
+    ensure!(
+        rms[1] <= 1.0,
+        "identified parameters track at {:.3} % > 1 %",
+        rms[1]
+    );
+    ensure!(
+        rms[0] >= 5.0 * rms[1],
+        "identified parameters only {:.1}x better than the defaults",
+        rms[0] / rms[1]
+    );
+    Ok(s)
 }
 
 /// The runs `cargo xtask test` makes (step `hil`): the default plant for one second (exit 0,
@@ -652,6 +935,8 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     print!("{table}");
     summary.push_str(&table);
 
+    summary.push_str(&end_to_end(ctx, &elf, &exe, &base.join("e2e"))?);
+
     for (name, inject, exit) in [
         ("nan", Inject::Nan(1_000), 7),
         ("silent", Inject::Silent(1_000), 8),
@@ -729,6 +1014,18 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
             }
             "--out" => run.out = PathBuf::from(value(a)?),
             "--no-conditioning" => run.conditioning = false,
+            "--plant-params" => run.plant_params = Some(PathBuf::from(value(a)?)),
+            "--measure" => {
+                run.measure = Some((
+                    Arc::new(identification_programme()?),
+                    PathBuf::from(value(a)?),
+                ))
+            }
+            "--end-to-end" => {
+                let elf = firmware(ctx)?;
+                let exe = maglab(ctx)?;
+                return end_to_end(ctx, &elf, &exe, &ctx.root.join("out/hil/e2e")).map(|_| ());
+            }
             other => bail!("unknown option `{other}` (see `cargo xtask help`)"),
         }
     }
