@@ -90,6 +90,9 @@ mod firmware {
     /// (~6 instructions each: ≈ 100 s of virtual time under `-icount shift=10`, a few seconds of
     /// host time; on a board this would be one control period).
     pub const MAX_LINK_POLLS: u32 = 1 << 24;
+    /// The same bound for the first frame of a run: 16× longer (about a minute of host time),
+    /// for plant programs that take a while to start (an interpreter, a simulation package).
+    pub const MAX_FIRST_LINK_POLLS: u32 = 1 << 28;
     /// Polls of the UART transmit buffer per byte before a send counts as failed.
     pub const MAX_TX_POLLS: u32 = 1 << 16;
     /// Exit status: a sensor fault was latched and handled (ramp to 0 A, held, flagged).
@@ -207,7 +210,7 @@ mod firmware {
         assembler: &mut SampleAssembler,
         seq: u16,
     ) -> Result<f32, ()> {
-        for _ in 0..MAX_LINK_POLLS {
+        for _ in 0..polls_for(seq) {
             if let Some(byte) = uart.try_read() {
                 if let Some(frame) = assembler.push(byte) {
                     return ProgrammeFrame::decode(&frame, seq)
@@ -219,13 +222,23 @@ mod firmware {
         Err(())
     }
 
+    /// The poll bound of a frame of tick `seq` (the first tick gets the start-up allowance; a
+    /// run longer than 2¹⁶ ticks gives it again at each wrap, harmlessly).
+    fn polls_for(seq: u16) -> u32 {
+        if seq == 0 {
+            MAX_FIRST_LINK_POLLS
+        } else {
+            MAX_LINK_POLLS
+        }
+    }
+
     /// Receives the sample frame of tick `seq` (bounded wait).
     fn receive(
         uart: &mut CmsdkUart,
         assembler: &mut SampleAssembler,
         seq: u16,
     ) -> Result<SampleFrame, ()> {
-        for _ in 0..MAX_LINK_POLLS {
+        for _ in 0..polls_for(seq) {
             if let Some(byte) = uart.try_read() {
                 if let Some(frame) = assembler.push(byte) {
                     return SampleFrame::decode(&frame, seq).map_err(|_| ());

@@ -852,7 +852,9 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
 
 /// The runs `cargo xtask test` makes (step `hil`): the default plant for one second (exit 0,
 /// tracking ≤ 1 % of the peak-to-peak on the true displacement, ≤ 30 s wall); the Python plant
-/// `host-tests/hil/first_order_plant.py` speaking the protocol (exit 0); a NaN sample (exit 7), a
+/// `host-tests/hil/first_order_plant.py` speaking the protocol (exit 0), also started 5 s late;
+/// conditioning vs random prior histories; measure → identify → re-bake → track
+/// ([`end_to_end`]); a NaN sample (exit 7), a
 /// silent link (exit 8) and a desynchronized frame (exit 8), each ending at 0 A.
 pub fn check(ctx: &Ctx) -> Result<String> {
     let elf = firmware(ctx)?;
@@ -894,6 +896,16 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         r.commands,
         py.ticks
     );
+
+    // A plant program that takes seconds to start (an interpreter, a simulation package) gets
+    // the first frame's longer allowance.
+    let mut slow = HilRun::new(base.join("python_slow_start"));
+    slow.plant_cmd = Some(
+        "sleep 5; python3 host-tests/hil/first_order_plant.py --params params/actuator.json".into(),
+    );
+    slow.ticks = 200;
+    let r = run_once(ctx, &elf, None, &slow)?;
+    summary.push_str(&r.summary);
 
     // Start-up conditioning against unknown prior histories (20 random current levels within
     // ±I_max before power-up), with and without it.

@@ -130,7 +130,7 @@ pub fn steps() -> Vec<Step> {
         },
         Step {
             name: "hil",
-            purpose: "virtual bench: firmware-hil under QEMU in lock-step with the default plant (1 s, tracking <= 1 %, <= 30 s wall) and a Python plant; NaN sample, silent link and corrupted frame end at 0 A with exits 7/8",
+            purpose: "virtual bench: firmware-hil under QEMU in lock-step with the default plant (1 s, tracking <= 1 %, <= 30 s wall) and a Python plant (also started late); conditioning vs random histories; measure -> identify -> re-bake -> track on a plant with other parameters (<= 1 %, >= 5x better than the defaults); NaN sample, silent link, corrupted frame end at 0 A (exits 7/8)",
             action: Action::Func(|ctx| crate::hil::check(ctx).map(|_| ())),
         },
         Step {
