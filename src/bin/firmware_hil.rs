@@ -64,23 +64,19 @@ pub use firmware::*;
 #[cfg(target_os = "none")]
 mod firmware {
     use core::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, AtomicU8, Ordering};
-    use cortex_m::interrupt::InterruptNumber;
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
-    use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
     use magctl::board::handoff::HandOff;
-    use magctl::board::mps2_an386::fpgaio::MiscPin;
-    use magctl::board::mps2_an386::pl022::Pl022;
     use magctl::board::mps2_an386::semihosting;
     use magctl::board::mps2_an386::uart::{CmsdkUart, UART0_BASE};
-    use magctl::board::mps2_an386::{FPGAIO_BASE, SPI0_BASE, TIMER0_IRQ};
+    use magctl::board::mps2_an386::{take_dac, Dac, Timer0Irq};
     use magctl::inverse::{
         CommandFlags, Conditioning, ConditioningState, ControlLoop, InverseKind, LoopState,
     };
     use magctl::link::{
         CommandFrame, ProgrammeFrame, Sample, SampleAssembler, SampleFrame, KIND_BEGIN,
-        KIND_COMMAND, KIND_END, KIND_SAMPLE_COUNT, KIND_SAMPLE_METRES,
+        KIND_COMMAND, KIND_END, KIND_SAMPLE_COUNT, KIND_SAMPLE_METRES, SAMPLE_FRAME_BYTES,
     };
-    use magctl::output::{CurrentOutput, DacScale, SpiDac};
+    use magctl::output::{CurrentOutput, DacScale};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
     use magctl::sensor::SensorFault;
 
@@ -101,17 +97,6 @@ mod firmware {
     pub const EXIT_LINK_FAULT: u32 = 8;
     /// Exit status: a self-check failed.
     pub const EXIT_CHECK_FAILED: u32 = 3;
-
-    #[derive(Clone, Copy)]
-    struct Timer0Irq;
-    // SAFETY: 8 is TIMER0's interrupt number on mps2-an386.
-    unsafe impl InterruptNumber for Timer0Irq {
-        fn number(self) -> u16 {
-            TIMER0_IRQ
-        }
-    }
-
-    type Dac = SpiDac<ExclusiveDevice<Pl022, MiscPin, NoDelay>>;
 
     /// The control interrupt's state.
     struct App {
@@ -204,24 +189,6 @@ mod firmware {
         }
     }
 
-    /// Receives the programme frame of tick `seq` (measurement mode; bounded wait).
-    fn receive_programme(
-        uart: &mut CmsdkUart,
-        assembler: &mut SampleAssembler,
-        seq: u16,
-    ) -> Result<f32, ()> {
-        for _ in 0..polls_for(seq) {
-            if let Some(byte) = uart.try_read() {
-                if let Some(frame) = assembler.push(byte) {
-                    return ProgrammeFrame::decode(&frame, seq)
-                        .map(|f| f.current_a)
-                        .map_err(|_| ());
-                }
-            }
-        }
-        Err(())
-    }
-
     /// The poll bound of a frame of tick `seq` (the first tick gets the start-up allowance; a
     /// run longer than 2¹⁶ ticks gives it again at each wrap, harmlessly).
     fn polls_for(seq: u16) -> u32 {
@@ -232,16 +199,18 @@ mod firmware {
         }
     }
 
-    /// Receives the sample frame of tick `seq` (bounded wait).
-    fn receive(
+    /// Receives the next 8-byte frame of tick `seq` and decodes it with `decode` (bounded
+    /// wait: a silent link, a wrong sync byte, kind or sequence number is `Err`).
+    fn receive<T, E>(
         uart: &mut CmsdkUart,
         assembler: &mut SampleAssembler,
         seq: u16,
-    ) -> Result<SampleFrame, ()> {
+        decode: impl Fn(&[u8; SAMPLE_FRAME_BYTES], u16) -> Result<T, E>,
+    ) -> Result<T, ()> {
         for _ in 0..polls_for(seq) {
             if let Some(byte) = uart.try_read() {
                 if let Some(frame) = assembler.push(byte) {
-                    return SampleFrame::decode(&frame, seq).map_err(|_| ());
+                    return decode(&frame, seq).map_err(|_| ());
                 }
             }
         }
@@ -336,10 +305,8 @@ mod firmware {
         let Some(scale) = DacScale::new(BAKED_PARAMETERS.control.current_limit_a) else {
             semihosting::exit(5)
         };
-        let spi = unsafe { Pl022::new(SPI0_BASE) };
-        let cs = unsafe { MiscPin::new(FPGAIO_BASE, 1) };
-        let Ok(device) = ExclusiveDevice::new_no_delay(spi, cs);
-        let mut dac = SpiDac::new(device, scale);
+        // SAFETY: SPI0 and the chip-select pin are owned by nothing else.
+        let mut dac = unsafe { take_dac(scale) };
         // 0 A first, whatever the DAC held before this reset.
         if dac.write_current(0.0).is_err() {
             defmt::error!("the DAC cannot be written (SPI timeout)");
@@ -423,13 +390,13 @@ mod firmware {
         while tick < ticks || (link_fault_at.is_some() && !ramp_done && tick < ticks + ramp_ticks) {
             let seq = tick as u16;
             if measure && link_fault_at.is_none() {
-                match receive_programme(&mut uart, &mut assembler, seq) {
-                    Ok(i) => PROGRAMME_BITS.store(i.to_bits(), Ordering::Relaxed),
+                match receive(&mut uart, &mut assembler, seq, ProgrammeFrame::decode) {
+                    Ok(p) => PROGRAMME_BITS.store(p.current_a.to_bits(), Ordering::Relaxed),
                     Err(()) => link_fault_at = Some(tick),
                 }
             }
             let sample = if link_fault_at.is_none() {
-                match receive(&mut uart, &mut assembler, seq) {
+                match receive(&mut uart, &mut assembler, seq, SampleFrame::decode) {
                     Ok(frame) => Some(frame.sample),
                     Err(()) => {
                         link_fault_at = Some(tick);

@@ -64,22 +64,18 @@ pub use firmware::*;
 #[cfg(target_os = "none")]
 mod firmware {
     use core::sync::atomic::{AtomicBool, Ordering};
-    use cortex_m::interrupt::InterruptNumber;
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
-    use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
     use magctl::board::handoff::HandOff;
     use magctl::board::mps2_an386::capture::{encode, Record, Ring};
-    use magctl::board::mps2_an386::fpgaio::MiscPin;
-    use magctl::board::mps2_an386::pl022::Pl022;
     use magctl::board::mps2_an386::semihosting::{self, HostFile};
     use magctl::board::mps2_an386::timer::CmsdkTimer;
-    use magctl::board::mps2_an386::{FPGAIO_BASE, SPI0_BASE, TIMER0_BASE, TIMER0_IRQ, TIMER1_BASE};
+    use magctl::board::mps2_an386::{take_dac, Dac, Timer0Irq, TIMER0_BASE, TIMER1_BASE};
     use magctl::inverse::{
         ControlLoop, EverettBisectionInverter, InverseKind, LoopCore, LoopState, NaiveLoopState,
         RelayGridInverter,
     };
     use magctl::model::DynamicModel;
-    use magctl::output::{CurrentOutput, DacScale, SpiDac};
+    use magctl::output::{CurrentOutput, DacScale};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
     use magctl::preisach::baselines::RelayGrid;
     use magctl::trajectory::DesiredMotion;
@@ -121,17 +117,6 @@ mod firmware {
     const PHASE_EVERETT: u8 = 5;
     const PHASE_RELAY: u8 = 6;
     const PHASE_DONE: u8 = 7;
-
-    #[derive(Clone, Copy)]
-    struct Timer0Irq;
-    // SAFETY: 8 is TIMER0's interrupt number on mps2-an386.
-    unsafe impl InterruptNumber for Timer0Irq {
-        fn number(self) -> u16 {
-            TIMER0_IRQ
-        }
-    }
-
-    type Dac = SpiDac<ExclusiveDevice<Pl022, MiscPin, NoDelay>>;
 
     /// `repr(C)` with the baselines' large states last: Thumb loads reach 4 KiB from a base
     /// register, so the fields the controller's own path touches stay within one offset of the
@@ -603,10 +588,8 @@ mod firmware {
         let Some(scale) = DacScale::new(BAKED_PARAMETERS.control.current_limit_a) else {
             semihosting::exit(5)
         };
-        let spi = unsafe { Pl022::new(SPI0_BASE) };
-        let cs = unsafe { MiscPin::new(FPGAIO_BASE, 1) };
-        let Ok(device) = ExclusiveDevice::new_no_delay(spi, cs);
-        let mut dac = SpiDac::new(device, scale);
+        // SAFETY: SPI0 and the chip-select pin are owned by nothing else.
+        let mut dac = unsafe { take_dac(scale) };
         // 0 A first, whatever the DAC held before this reset.
         if dac.write_current(0.0).is_err() {
             defmt::error!("the DAC cannot be written (SPI timeout)");

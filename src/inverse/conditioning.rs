@@ -64,6 +64,15 @@ pub struct ConditioningState {
 }
 
 impl ConditioningState {
+    /// One tick of a hold: moves on to `next` when the hold has run out.
+    #[inline(always)]
+    fn count_down_to(&mut self, next: Phase) {
+        self.ticks_left = self.ticks_left.saturating_sub(1);
+        if self.ticks_left == 0 {
+            self.phase = next;
+        }
+    }
+
     /// Whether the sequence has ended (tracking may start).
     pub fn done(&self) -> bool {
         self.phase == Phase::Done
@@ -131,12 +140,7 @@ impl Conditioning {
     #[inline]
     pub fn step(&self, s: &mut ConditioningState) -> f32 {
         match s.phase {
-            Phase::HoldStart => {
-                s.ticks_left = s.ticks_left.saturating_sub(1);
-                if s.ticks_left == 0 {
-                    s.phase = Phase::Down;
-                }
-            }
+            Phase::HoldStart => s.count_down_to(Phase::Down),
             Phase::Down => {
                 s.current_a -= self.step_a;
                 if s.current_a <= self.low_a {
@@ -145,12 +149,7 @@ impl Conditioning {
                     s.ticks_left = self.hold_ticks;
                 }
             }
-            Phase::HoldLow => {
-                s.ticks_left = s.ticks_left.saturating_sub(1);
-                if s.ticks_left == 0 {
-                    s.phase = Phase::Up;
-                }
-            }
+            Phase::HoldLow => s.count_down_to(Phase::Up),
             Phase::Up => {
                 s.current_a += self.step_a;
                 if s.current_a >= s.target_a {
@@ -159,12 +158,7 @@ impl Conditioning {
                     s.ticks_left = self.hold_ticks;
                 }
             }
-            Phase::HoldTarget => {
-                s.ticks_left = s.ticks_left.saturating_sub(1);
-                if s.ticks_left == 0 {
-                    s.phase = Phase::Done;
-                }
-            }
+            Phase::HoldTarget => s.count_down_to(Phase::Done),
             Phase::Done => {}
         }
         s.current_a

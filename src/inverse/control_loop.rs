@@ -71,6 +71,18 @@ pub struct LoopCore {
     pub sensor_fault: Option<SensorFault>,
 }
 
+impl LoopCore {
+    /// Counts a rejected sample and latches the first fault (every later command then ramps to
+    /// and holds 0 A until the loop is re-initialized).
+    #[inline(always)]
+    fn latch(&mut self, fault: SensorFault) {
+        self.counters.sensor_faults = self.counters.sensor_faults.wrapping_add(1);
+        if self.sensor_fault.is_none() {
+            self.sensor_fault = Some(fault);
+        }
+    }
+}
+
 /// Full loop state with the fast Preisach memory.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoopState<const N: usize> {
@@ -322,12 +334,7 @@ impl<'m> ControlLoop<'m> {
         let core = &mut state.core;
         match sample {
             Ok(y) => core.measured_m = y,
-            Err(fault) => {
-                core.counters.sensor_faults = core.counters.sensor_faults.wrapping_add(1);
-                if core.sensor_fault.is_none() {
-                    core.sensor_fault = Some(fault);
-                }
-            }
+            Err(fault) => core.latch(fault),
         }
         if core.sensor_fault.is_some() {
             let desired = self.trajectory.step(&mut core.trajectory);
@@ -370,12 +377,7 @@ impl<'m> ControlLoop<'m> {
             // Saturating the rod drives it to its full stroke, beyond the sensor's valid range
             // (and often to its rail): expected here, not a fault.
             Err(SensorFault::OutOfValidRange) => {}
-            Err(fault) => {
-                core.counters.sensor_faults = core.counters.sensor_faults.wrapping_add(1);
-                if core.sensor_fault.is_none() {
-                    core.sensor_fault = Some(fault);
-                }
-            }
+            Err(fault) => core.latch(fault),
         }
         let desired = self.trajectory.motion(&core.trajectory);
         let (current_a, flags) = if core.sensor_fault.is_some() {
@@ -411,15 +413,12 @@ impl<'m> ControlLoop<'m> {
         let core = &mut state.core;
         let reading_m = match reading {
             Ok(y) if y.is_finite() => y,
-            Ok(_) | Err(_) => {
-                let fault = match reading {
-                    Err(f) => f,
-                    Ok(_) => SensorFault::NotFinite,
-                };
-                core.counters.sensor_faults = core.counters.sensor_faults.wrapping_add(1);
-                if core.sensor_fault.is_none() {
-                    core.sensor_fault = Some(fault);
-                }
+            Ok(_) => {
+                core.latch(SensorFault::NotFinite);
+                f32::NAN
+            }
+            Err(fault) => {
+                core.latch(fault);
                 f32::NAN
             }
         };

@@ -25,7 +25,7 @@
 //! (the plant's true displacement from its log when it writes one — `maglab hil-plant --log` —,
 //! and the sensor's reading otherwise), and the wall time.
 
-use crate::qemu::{build_bin, decode_defmt, firmware_dir, stats, TARGET};
+use crate::qemu::{build_bin, decode_defmt, firmware_dir, qemu_command, stats, TARGET};
 use crate::util::{display, run_checked, Ctx};
 use anyhow::{bail, ensure, Context, Result};
 use magctl::inverse::CommandFlags;
@@ -239,29 +239,15 @@ pub fn run_once(
     if !run.conditioning {
         semi.push_str(",arg=condition=off");
     }
-    let mut qemu = Command::new("timeout");
-    qemu.args([
+    let mut qemu = qemu_command(
         QEMU_TIMEOUT_S,
-        "qemu-system-arm",
-        "-machine",
-        "mps2-an386",
-        "-cpu",
-        "cortex-m4",
-        "-nographic",
-        "-monitor",
-        "none",
-        "-serial",
         &format!("tcp:127.0.0.1:{port},nodelay=on"),
-        "-semihosting-config",
         &semi,
-        "-icount",
-        "shift=10,sleep=off",
-        "-kernel",
-    ])
-    .arg(elf)
-    .current_dir(&out_abs)
-    .stdout(Stdio::piped())
-    .stderr(Stdio::piped());
+        elf,
+    );
+    qemu.current_dir(&out_abs)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
     println!("$ {}", display(&qemu));
     let started = Instant::now();
     let mut qemu_child = qemu.spawn().context("cannot start qemu-system-arm")?;

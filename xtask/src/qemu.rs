@@ -145,31 +145,41 @@ pub fn build_bin(ctx: &Ctx, bin: &str, features: &str) -> Command {
     cmd
 }
 
+/// `timeout TIMEOUT qemu-system-arm` on mps2-an386 (Cortex-M4F) with semihosting (`semi`: the
+/// `-semihosting-config` value), `-icount shift=10,sleep=off` (SysTick counts instructions), the
+/// first UART on `serial` (a QEMU `-serial` value) and `elf` as the kernel.
+pub fn qemu_command(timeout_s: &str, serial: &str, semi: &str, elf: &Path) -> Command {
+    let mut cmd = Command::new("timeout");
+    cmd.args([
+        timeout_s,
+        "qemu-system-arm",
+        "-machine",
+        "mps2-an386",
+        "-cpu",
+        "cortex-m4",
+        "-nographic",
+        "-monitor",
+        "none",
+        "-serial",
+        serial,
+        "-semihosting-config",
+        semi,
+        "-icount",
+        "shift=10,sleep=off",
+        "-kernel",
+    ])
+    .arg(elf);
+    cmd
+}
+
 fn qemu(elf: &Path, out_dir: &Path, extra_arg: Option<&str>) -> Command {
     let mut semi = String::from("enable=on,target=native,arg=firmware-qemu");
     if let Some(a) = extra_arg {
         semi.push_str(",arg=");
         semi.push_str(a);
     }
-    let mut cmd = Command::new("timeout");
-    cmd.args([
-        QEMU_TIMEOUT_S,
-        "qemu-system-arm",
-        "-machine",
-        "mps2-an386",
-        "-cpu",
-        "cortex-m4",
-    ])
-    .args(["-nographic", "-monitor", "none", "-serial", "none"])
-    .args([
-        "-semihosting-config",
-        &semi,
-        "-icount",
-        "shift=10,sleep=off",
-        "-kernel",
-    ])
-    .arg(elf)
-    .current_dir(out_dir);
+    let mut cmd = qemu_command(QEMU_TIMEOUT_S, "none", &semi, elf);
+    cmd.current_dir(out_dir);
     cmd
 }
 
