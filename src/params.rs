@@ -67,6 +67,40 @@ pub struct Control {
     pub current_limit_a: f32,
     /// Current command slew limit, A/s.
     pub current_slew_limit_a_per_s: f32,
+    /// Displacement feedback around the inverse (`inverse::feedback`).
+    pub feedback: Feedback,
+}
+
+/// The feedback structure (parameter file: `control.feedback.structure`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FeedbackStructure {
+    /// Feedforward only (the inverse alone).
+    Off,
+    /// PI on the displacement error, acting on `ȳ`.
+    Integral,
+    /// Harmonic learning over the trajectory's cycle (repetitive control) plus the PI terms.
+    Repetitive,
+}
+
+/// Displacement-feedback settings (see `inverse::feedback` for the law and its units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Feedback {
+    /// Structure.
+    pub structure: FeedbackStructure,
+    /// γ: fraction of the error corrected per cycle.
+    pub learning_gain: f32,
+    /// N: harmonics of the trajectory's fundamental the learning corrects.
+    pub learning_harmonics: u32,
+    /// λ: leak of the learned coefficients per cycle.
+    pub learning_leak_per_cycle: f32,
+    /// K_p (m per m of error).
+    pub proportional_gain: f32,
+    /// K_i, 1/s.
+    pub integral_gain_per_s: f32,
+    /// Bound on the correction (table entries and integrator), m.
+    pub correction_limit_m: f32,
+    /// Ticks with a bit-identical sample after which the sensor counts as stuck.
+    pub stuck_sensor_ticks: u32,
 }
 
 /// The coil and its amplifier (what bounds the current slew; see the parameter file's
@@ -143,7 +177,8 @@ mod from_file {
     //! `build.rs` applies when it bakes a file.
 
     use super::{
-        Actuator, ActuatorParameters, Amplifier, Control, PreisachGrid, Sensor, Trajectory,
+        Actuator, ActuatorParameters, Amplifier, Control, Feedback, FeedbackStructure,
+        PreisachGrid, Sensor, Trajectory,
     };
     use crate::preisach::CELL_COUNT;
     use actuator_params::{ActuatorParams, ParamsError};
@@ -163,6 +198,26 @@ mod from_file {
                 resonance_hz: a.resonance_hz as f32,
                 eddy_resistance_ohm: a.eddy_resistance_ohm as f32,
                 damping_ratio: a.damping_ratio as f32,
+            }
+        }
+    }
+
+    impl Feedback {
+        /// The feedback settings of a parameter file, in f32.
+        pub fn from_file(f: &actuator_params::Feedback) -> Self {
+            Feedback {
+                structure: match f.structure {
+                    actuator_params::FeedbackStructure::Off => FeedbackStructure::Off,
+                    actuator_params::FeedbackStructure::Integral => FeedbackStructure::Integral,
+                    actuator_params::FeedbackStructure::Repetitive => FeedbackStructure::Repetitive,
+                },
+                learning_gain: f.learning_gain as f32,
+                learning_harmonics: f.learning_harmonics,
+                learning_leak_per_cycle: f.learning_leak_per_cycle as f32,
+                proportional_gain: f.proportional_gain as f32,
+                integral_gain_per_s: f.integral_gain_per_s as f32,
+                correction_limit_m: f.correction_limit_m as f32,
+                stuck_sensor_ticks: f.stuck_sensor_ticks,
             }
         }
     }
@@ -217,6 +272,7 @@ mod from_file {
                     sample_rate_hz: c.sample_rate_hz as f32,
                     current_limit_a: c.current_limit_a as f32,
                     current_slew_limit_a_per_s: c.current_slew_limit_a_per_s as f32,
+                    feedback: Feedback::from_file(&c.feedback),
                 },
                 amplifier: Amplifier {
                     compliance_voltage_v: file.amplifier.compliance_voltage_v as f32,

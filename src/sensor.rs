@@ -20,6 +20,9 @@ pub enum SensorFault {
     OutOfValidRange,
     /// No sample arrived in time (a silent sensor or link).
     Missing,
+    /// The sample came back bit-identical for `control.feedback.stuck_sensor_ticks` ticks while
+    /// the trajectory moved (detected by the feedback).
+    Stuck,
 }
 
 /// Scaling and validity of the sensor's samples.

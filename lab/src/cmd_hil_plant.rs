@@ -5,8 +5,9 @@
 //!
 //! The plant is `maglab-plant` (its own f64 Preisach evaluation and RK4 integrator, effects as in
 //! `maglab rig --effect`); each command is held over one control period (a DAC with a zero-order
-//! hold). The sensor sample of tick `k` is the plant's sensor output at `t_k` (its own dynamics and
-//! delay when a sensor effect is on) plus white noise, quantized to the ADC count of the parameter
+//! hold). The sensor sample of tick `k` is the plant's sensor output at `t_k − sample_delay_s` (the
+//! parameter file's `sensor` section; plus its own dynamics and delay when a sensor effect is on)
+//! plus white noise, quantized to the ADC count of the parameter
 //! file's `sensor` section (or sent in metres with `--metres`).
 //!
 //! `--log FILE` writes one row per tick: `tick,t_s,current_a,desired_m,y_m,sample_m,count,flags,
@@ -143,8 +144,10 @@ pub fn run(args: &Args) -> Result<()> {
         }
         None => None,
     };
+    // The sensor's documented conversion delay (`sensor.sample_delay_s`).
+    let delay_s = loaded.file.sensor.sample_delay_s;
     let sample_of = |plant: &Plant, rng: &mut rand::rngs::StdRng| -> (Sample, f64, u32) {
-        let mut y = plant.sensor_at(plant.time_s());
+        let mut y = plant.sensor_at(plant.time_s() - delay_s);
         if args.noise_m > 0.0 {
             y += noise.sample(rng);
         }

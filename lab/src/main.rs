@@ -18,6 +18,7 @@ mod cmd_loops;
 mod cmd_params;
 mod cmd_preisach_fit;
 mod cmd_rig;
+mod cmd_robustness;
 mod cmd_simulate;
 mod cmd_track;
 mod params_io;
@@ -64,6 +65,9 @@ enum Command {
     /// The bench plant as a plant program of the virtual bench: lock-step frames on
     /// stdin/stdout (docs/hil.md); run by `cargo xtask hil`.
     HilPlant(cmd_hil_plant::Args),
+    /// The closed loop against plants the model does not describe: open- vs closed-loop
+    /// tracking per case (out/robustness/robustness.csv and a plot).
+    Robustness(cmd_robustness::Args),
 }
 
 /// Exit code for an invalid parameter file.
@@ -83,6 +87,7 @@ fn main() -> ExitCode {
         Command::Rig(args) => cmd_rig::run(args),
         Command::Diagnose(args) => cmd_diagnose::run(args),
         Command::HilPlant(args) => cmd_hil_plant::run(args),
+        Command::Robustness(args) => cmd_robustness::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -84,6 +84,25 @@ pub fn widen(p: &ActuatorParameters) -> ActuatorParams {
     file.control.sample_rate_hz = p.control.sample_rate_hz as f64;
     file.control.current_limit_a = p.control.current_limit_a as f64;
     file.control.current_slew_limit_a_per_s = p.control.current_slew_limit_a_per_s as f64;
+    let f = &p.control.feedback;
+    file.control.feedback = actuator_params::Feedback {
+        structure: match f.structure {
+            magctl::params::FeedbackStructure::Off => actuator_params::FeedbackStructure::Off,
+            magctl::params::FeedbackStructure::Integral => {
+                actuator_params::FeedbackStructure::Integral
+            }
+            magctl::params::FeedbackStructure::Repetitive => {
+                actuator_params::FeedbackStructure::Repetitive
+            }
+        },
+        learning_gain: f.learning_gain as f64,
+        learning_harmonics: f.learning_harmonics,
+        learning_leak_per_cycle: f.learning_leak_per_cycle as f64,
+        proportional_gain: f.proportional_gain as f64,
+        integral_gain_per_s: f.integral_gain_per_s as f64,
+        correction_limit_m: f.correction_limit_m as f64,
+        stuck_sensor_ticks: f.stuck_sensor_ticks,
+    };
     file.amplifier = actuator_params::Amplifier {
         compliance_voltage_v: p.amplifier.compliance_voltage_v as f64,
         coil_resistance_ohm: p.amplifier.coil_resistance_ohm as f64,

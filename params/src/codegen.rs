@@ -78,6 +78,29 @@ pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
     ] {
         let _ = writeln!(out, "        {name}: {},", lit(v));
     }
+    let f = &c.feedback;
+    let _ = writeln!(out, "        feedback: Feedback {{");
+    let _ = writeln!(
+        out,
+        "            structure: FeedbackStructure::{:?},",
+        f.structure
+    );
+    for (name, v) in [
+        ("learning_gain", f.learning_gain),
+        ("learning_leak_per_cycle", f.learning_leak_per_cycle),
+        ("proportional_gain", f.proportional_gain),
+        ("integral_gain_per_s", f.integral_gain_per_s),
+        ("correction_limit_m", f.correction_limit_m),
+    ] {
+        let _ = writeln!(out, "            {name}: {},", lit(v));
+    }
+    for (name, v) in [
+        ("learning_harmonics", f.learning_harmonics),
+        ("stuck_sensor_ticks", f.stuck_sensor_ticks),
+    ] {
+        let _ = writeln!(out, "            {name}: {v},");
+    }
+    let _ = writeln!(out, "        }},");
     let _ = writeln!(out, "    }},");
     let _ = writeln!(out, "    amplifier: Amplifier {{");
     for (name, v) in [

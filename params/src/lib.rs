@@ -60,6 +60,7 @@ pub fn paper_defaults() -> ActuatorParams {
             // The amplifier's guaranteed slew at 2 A, (48 - 5.8 x 2) / 8e-3 = 4550 A/s, rounded
             // down (see `amplifier`).
             current_slew_limit_a_per_s: 4.5e3,
+            feedback: Feedback::default(),
         },
         // An example coil and amplifier (the paper does not publish them): 1300 turns of
         // 0.5 mm copper on an 84 mm bobbin around the 6 mm rod (~69 m of wire, 5.8 ohm hot), about

@@ -89,6 +89,63 @@ pub struct Control {
     pub current_limit_a: f64,
     /// Largest change of the current command per second, A/s.
     pub current_slew_limit_a_per_s: f64,
+    /// Displacement feedback around the inverse (absent: [`Feedback::default`], the
+    /// repetitive structure with the gains of `docs/params.md`).
+    #[serde(default)]
+    pub feedback: Feedback,
+}
+
+/// The feedback structure around the inverse (`docs/control.md`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FeedbackStructure {
+    /// Feedforward only: the inverse alone, the sensor only watched for faults.
+    Off,
+    /// PI on the displacement error, acting on the desired displacement.
+    Integral,
+    /// Harmonic learning over the trajectory's cycle (repetitive control), plus the PI terms
+    /// when their gains are not zero.
+    Repetitive,
+}
+
+/// Displacement-feedback settings (the law: `magctl::inverse::feedback`; `docs/control.md`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Feedback {
+    /// `off`, `integral` or `repetitive`.
+    pub structure: FeedbackStructure,
+    /// γ: the fraction of the error the table corrects per trajectory cycle, in [0, 2].
+    pub learning_gain: f64,
+    /// N: the harmonics of the trajectory's fundamental the learning corrects, 1..=16 (those
+    /// above are never excited by it: keep `N·f_trajectory` below any unmodelled resonance).
+    pub learning_harmonics: u32,
+    /// λ: the leak of the learned coefficients per cycle (forgets what is no longer measured),
+    /// in [0, 1).
+    pub learning_leak_per_cycle: f64,
+    /// K_p of the PI, m of correction per m of error, in [0, 1).
+    pub proportional_gain: f64,
+    /// K_i of the PI, 1/s, in [0, sample_rate_hz / 2].
+    pub integral_gain_per_s: f64,
+    /// Bound on the correction (each table entry and the integrator), m, > 0.
+    pub correction_limit_m: f64,
+    /// A sample bit-identical for this many ticks in a row while the trajectory moves is a stuck
+    /// sensor (the loop falls back to feedforward), >= 2.
+    pub stuck_sensor_ticks: u32,
+}
+
+impl Default for Feedback {
+    fn default() -> Self {
+        Feedback {
+            structure: FeedbackStructure::Repetitive,
+            learning_gain: 0.3,
+            learning_harmonics: 6,
+            learning_leak_per_cycle: 0.002,
+            proportional_gain: 0.0,
+            integral_gain_per_s: 0.0,
+            correction_limit_m: 25e-6,
+            stuck_sensor_ticks: 200,
+        }
+    }
 }
 
 /// The coil and its current amplifier. A transconductance amplifier can force the coil current
@@ -445,6 +502,68 @@ impl ActuatorParams {
                     10.0 * period_s,
                     sn.sample_delay_s
                 ),
+            ));
+        }
+        let fb = &self.control.feedback;
+        let rate = self.control.sample_rate_hz;
+        let in_range = |field: &str, v: f64, lo: f64, hi: f64, closed_hi: bool| {
+            let ok = v.is_finite() && v >= lo && (v < hi || (closed_hi && v == hi));
+            if ok {
+                Ok(())
+            } else {
+                Err(err(
+                    field,
+                    format!(
+                        "must be in [{lo}, {hi}{} got {v}",
+                        if closed_hi { "]," } else { ")," }
+                    ),
+                ))
+            }
+        };
+        in_range(
+            "control.feedback.learning_gain",
+            fb.learning_gain,
+            0.0,
+            2.0,
+            true,
+        )?;
+        in_range(
+            "control.feedback.learning_leak_per_cycle",
+            fb.learning_leak_per_cycle,
+            0.0,
+            1.0,
+            false,
+        )?;
+        in_range(
+            "control.feedback.proportional_gain",
+            fb.proportional_gain,
+            0.0,
+            1.0,
+            false,
+        )?;
+        in_range(
+            "control.feedback.integral_gain_per_s",
+            fb.integral_gain_per_s,
+            0.0,
+            rate / 2.0,
+            true,
+        )?;
+        if !(fb.correction_limit_m.is_finite() && fb.correction_limit_m > 0.0) {
+            return Err(err(
+                "control.feedback.correction_limit_m",
+                format!("must be > 0 m, got {}", fb.correction_limit_m),
+            ));
+        }
+        if !(1..=16).contains(&fb.learning_harmonics) {
+            return Err(err(
+                "control.feedback.learning_harmonics",
+                format!("must be in 1..=16, got {}", fb.learning_harmonics),
+            ));
+        }
+        if fb.stuck_sensor_ticks < 2 {
+            return Err(err(
+                "control.feedback.stuck_sensor_ticks",
+                format!("must be >= 2, got {}", fb.stuck_sensor_ticks),
             ));
         }
         let nyquist = self.control.sample_rate_hz / 2.0;

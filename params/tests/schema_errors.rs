@@ -50,6 +50,9 @@ fn every_case_is_tested_here() {
             "negative_resistance",
             "slew_beyond_amplifier",
             "amplifier_cannot_hold_current_limit",
+            "feedback_gain_out_of_range",
+            "feedback_no_harmonics",
+            "feedback_unknown_structure",
             "wrong_number_of_weights",
             "h_min_not_below_h_max",
             "levels_inconsistent_with_weights",
@@ -66,6 +69,21 @@ fn slew_beyond_amplifier() {
 #[test]
 fn amplifier_cannot_hold_current_limit() {
     check("amplifier_cannot_hold_current_limit");
+}
+
+#[test]
+fn feedback_gain_out_of_range() {
+    check("feedback_gain_out_of_range");
+}
+
+#[test]
+fn feedback_no_harmonics() {
+    check("feedback_no_harmonics");
+}
+
+#[test]
+fn feedback_unknown_structure() {
+    check("feedback_unknown_structure");
 }
 
 #[test]

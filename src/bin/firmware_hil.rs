@@ -27,9 +27,11 @@
 //! tick is `Missing`, the loop latches a sensor fault and the firmware keeps ticking on its own
 //! (no more waiting) until the command has ramped to 0 A at the slew limit, then ends: exit 8. A
 //! sample outside the ADC's range or the valid range, or a non-finite one, is a *sensor fault*:
-//! the coil ramps to 0 A and holds it, every command flagged, while the plant keeps the clock to
-//! the end of the run: exit 7. A clean run exits 0; a failed self-check (a command other than 0 A
-//! after the ramp ended, an unflagged command after a fault, an SPI timeout) exits 3.
+//! with the feedback on, the loop falls back to the feedforward alone (flags `SENSOR_FAULT |
+//! FEEDFORWARD`); with it off (`feedback=off` or the parameter file), the coil ramps to 0 A and
+//! holds it, every command flagged; the plant keeps the clock to the end of the run: exit 7. A
+//! clean run exits 0; a failed self-check (a command other than 0 A after the ramp ended, an
+//! unflagged command after a fault, an SPI timeout) exits 3.
 //!
 //! **Start-up conditioning** (`magctl::inverse::Conditioning`): the first ticks ramp the coil to
 //! the negative current limit, hold, ramp up to the controller's first current and hold, so the
@@ -45,7 +47,8 @@
 //! --measure`). No conditioning: the programme carries its own.
 //!
 //! Command line (semihosting): `ticks=N` tracking or programme ticks (default: one second at the
-//! control rate), `inverse=static` (default dynamic), `condition=off`, `mode=measure`.
+//! control rate), `inverse=static` (default dynamic), `condition=off`, `mode=measure`,
+//! `feedback=off` (feedforward only, whatever the parameter file says).
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 
@@ -290,12 +293,17 @@ mod firmware {
         let tracking_ticks = arg_u32(line, b"ticks=").unwrap_or(rate_hz as u32);
         let measure = line.windows(12).any(|w| w == b"mode=measure");
         let condition = !measure && !line.windows(13).any(|w| w == b"condition=off");
+        let feedback_off = line.windows(12).any(|w| w == b"feedback=off");
         let kind = if line.windows(14).any(|w| w == b"inverse=static") {
             InverseKind::Static
         } else {
             InverseKind::Dynamic
         };
         let control = match ControlLoop::new(&BAKED_MEASURE, &BAKED_PARAMETERS) {
+            Ok(c) if feedback_off => {
+                let off = c.feedback().off();
+                c.with_feedback(off)
+            }
             Ok(c) => c,
             Err(_) => {
                 defmt::error!("invalid control settings in the baked parameters");
@@ -380,6 +388,7 @@ mod firmware {
         let mut check_failed = false;
         let (mut min_instr, mut max_instr) = (u16::MAX, 0u16);
         let mut ramp_done = false;
+        let mut fell_back = false;
         let mut tick: u32 = 0;
         // After a link fault the firmware is its own clock until the ramp to 0 A has ended
         // (bounded: the ramp from the current limit takes `limit / max_step` ticks).
@@ -421,10 +430,15 @@ mod firmware {
                 if !faulted {
                     check_failed = true;
                 }
-                if ramp_done && cmd.value != 0.0 {
-                    check_failed = true;
+                if flags.has(CommandFlags::FEEDFORWARD) {
+                    // Feedback on: the loop tracks on the feedforward alone to the end.
+                    fell_back = true;
+                } else {
+                    if ramp_done && cmd.value != 0.0 {
+                        check_failed = true;
+                    }
+                    ramp_done |= cmd.value == 0.0;
                 }
-                ramp_done |= cmd.value == 0.0;
             }
             if link_fault_at.is_none() {
                 if uart.write_all(&cmd.encode(), MAX_TX_POLLS).is_err() {
@@ -468,11 +482,12 @@ mod firmware {
             }
         } else if let Some(at) = sensor_fault_at {
             defmt::warn!(
-                "sensor fault at tick {=u32}: coil ramped to 0 A ({=bool}) and held, every command flagged",
+                "sensor fault at tick {=u32}: feedforward fallback ({=bool}) or coil ramped to 0 A ({=bool}) and held, every command flagged",
                 at,
+                fell_back,
                 ramp_done
             );
-            if ramp_done {
+            if ramp_done || fell_back {
                 EXIT_SENSOR_FAULT
             } else {
                 EXIT_CHECK_FAILED

@@ -103,8 +103,9 @@ mod firmware {
     /// **Overrun**: detected at the end of the handler when TIM2's update flag is already set
     /// again; counted ([`OVERRUNS`], logged every second). The pending interrupt then runs at
     /// once (late, no step skipped).
-    /// **Work**: one `ControlLoop` tick (the QEMU run measures ≤ 1,500 instructions for it plus
-    /// the DAC frame), one 24-bit SPI frame (2.1 µs at 11.25 MHz; every status wait bounded by
+    /// **Work**: one `ControlLoop::tick_sensed` with the displacement feedback (the virtual bench
+    /// measures it with the sensor read and the DAC frame: BENCHMARKS.md, about 1,070
+    /// instructions median and 2,200 worst case, far inside the 18,000-cycle period), one 24-bit SPI frame (2.1 µs at 11.25 MHz; every status wait bounded by
     /// `polled_spi::MAX_STATUS_POLLS`, a timeout is counted), the watchdog feed, counter updates.
     /// No allocation, no logging, no unbounded wait, no panic path (link-time proof with
     /// `--features panic-never`).
@@ -119,8 +120,10 @@ mod firmware {
             return;
         };
         app.timer.clear();
-        // The sensor sample of this period (bounded wait), scaled and checked; a bad or missing
-        // sample latches the sensor fault and the command ramps to 0 A.
+        // The sensor sample of this period (bounded wait), scaled and checked; a missing sample
+        // latches the sensor fault and the command ramps to 0 A; a bad one (out of range,
+        // stuck) makes the loop fall back to the feedforward alone (feedback on) or ramps to 0 A
+        // (feedback off).
         let sample = app
             .adc
             .sample()

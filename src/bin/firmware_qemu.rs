@@ -579,6 +579,12 @@ mod firmware {
         }
 
         let control = match ControlLoop::new(&BAKED_MEASURE, &BAKED_PARAMETERS) {
+            // The injection run checks the feedback-off fault path (ramp to 0 A); the
+            // feedback's own fallback is checked on the virtual bench (`cargo xtask hil`).
+            Ok(c) if inject_sensor_fault => {
+                let off = c.feedback().off();
+                c.with_feedback(off)
+            }
             Ok(c) => c,
             Err(_) => {
                 defmt::error!("invalid control settings in the baked parameters");

@@ -4,6 +4,7 @@
 //! command stream can be reproduced bit for bit on the host.
 
 use super::conditioning::{Conditioning, ConditioningState};
+use super::feedback::{FeedbackError, FeedbackLaw, FeedbackState};
 use super::inverter::{FastInverter, NaiveInverter, PreisachInverter};
 use super::limiter::{CommandFlags, LimiterError, OutputLimiter};
 use super::{DynamicInverse, InverseMemory, RawCommand, StaticMode};
@@ -67,8 +68,19 @@ pub struct LoopCore {
     pub counters: LoopCounters,
     /// The last valid sensor reading, m (NaN before the first).
     pub measured_m: f32,
-    /// The latched sensor fault: once set, every command ramps to and holds 0 A.
+    /// The latched sensor fault: once set, every command ramps to and holds 0 A (feedback off)
+    /// or is the feedforward alone (feedback on).
     pub sensor_fault: Option<SensorFault>,
+    /// The displacement feedback's table, phase and integrator.
+    pub feedback: FeedbackState,
+    /// Flags of the last command (the feedback's anti-windup reads them).
+    pub last_flags: CommandFlags,
+    /// The desired motion of the last target (uncorrected): the one the coming sample is
+    /// compared with.
+    pub last_desired: DesiredMotion,
+    /// A sample went missing (a silent sensor or link): the coil ramps to 0 A and stays there
+    /// whatever the feedback setting.
+    pub stopped: bool,
 }
 
 impl LoopCore {
@@ -118,6 +130,8 @@ pub enum LoopError {
     Trajectory(TrajectoryError),
     /// Output limits.
     Limiter(LimiterError),
+    /// Feedback settings.
+    Feedback(FeedbackError),
 }
 
 /// Coefficients of the whole control interrupt.
@@ -129,6 +143,7 @@ pub struct ControlLoop<'m> {
     static_mode: StaticMode,
     limiter: OutputLimiter,
     sensor: SensorScale,
+    feedback: FeedbackLaw,
     coil_factor_per_m: f32,
 }
 
@@ -139,10 +154,19 @@ impl<'m> ControlLoop<'m> {
         params: &ActuatorParameters,
     ) -> Result<Self, LoopError> {
         let step_s = 1.0 / params.control.sample_rate_hz;
+        let trajectory =
+            VanDerPol::new(&params.trajectory, &params.control).map_err(LoopError::Trajectory)?;
+        let feedback = FeedbackLaw::new(
+            &params.control.feedback,
+            params.control.sample_rate_hz,
+            trajectory.period_steps(),
+            params.sensor.sample_delay_s,
+        )
+        .map_err(LoopError::Feedback)?;
         Ok(ControlLoop {
             measure,
-            trajectory: VanDerPol::new(&params.trajectory, &params.control)
-                .map_err(LoopError::Trajectory)?,
+            trajectory,
+            feedback,
             dynamic: DynamicInverse::new(&params.actuator, step_s),
             static_mode: StaticMode::new(&params.actuator),
             limiter: OutputLimiter::new(&params.control).map_err(LoopError::Limiter)?,
@@ -171,6 +195,18 @@ impl<'m> ControlLoop<'m> {
         &self.dynamic
     }
 
+    /// The displacement feedback's coefficients.
+    pub fn feedback(&self) -> &FeedbackLaw {
+        &self.feedback
+    }
+
+    /// The same loop with another feedback law (e.g. feedforward only, to compare on one plant:
+    /// `maglab robustness`, the firmware's `feedback=off`).
+    pub fn with_feedback(mut self, feedback: FeedbackLaw) -> Self {
+        self.feedback = feedback;
+        self
+    }
+
     /// Initial state: trajectory on its limit cycle; the Preisach memory starts at negative
     /// saturation and is driven to the target of the first sample (so `H, M` start consistent
     /// with `ȳ(t_0)`), and the held current is the static current `H_0 / c0` of that field.
@@ -196,6 +232,12 @@ impl<'m> ControlLoop<'m> {
             counters: LoopCounters::default(),
             measured_m: f32::NAN,
             sensor_fault: None,
+            feedback: self
+                .feedback
+                .init(self.trajectory.start_phase_cycles(), trajectory.x),
+            last_flags: CommandFlags(0),
+            last_desired: desired,
+            stopped: false,
         }
     }
 
@@ -319,11 +361,21 @@ impl<'m> ControlLoop<'m> {
         self.command_with(kind, &mut inv, &mut state.core, desired)
     }
 
-    /// One interrupt with a sensor sample (`Ok(metres)` or the fault found while reading it):
-    /// the first fault is latched ([`LoopCore::sensor_fault`]); from then on the trajectory
-    /// still advances but the command ramps to 0 A at the slew limit and holds it, flagged
-    /// `SENSOR_FAULT`, until the loop is re-initialized (a restart). A valid sample is kept in
-    /// [`LoopCore::measured_m`] and the tick runs as [`ControlLoop::tick`].
+    /// One interrupt with a sensor sample (`Ok(metres)` or the fault found while reading it).
+    ///
+    /// **Feedback on** (`control.feedback.structure` not `off`, module `feedback`): a valid
+    /// sample is compared with the desired displacement at its time, the feedback learns from
+    /// the error, and the inverse computes the current for the corrected desired motion. The
+    /// first fault of the reading (out of range, non-finite, or *stuck*:
+    /// [`SensorFault::Stuck`]) is latched and the loop falls back to the feedforward alone for
+    /// good: the inverse keeps tracking on its model, every command flagged
+    /// `SENSOR_FAULT | FEEDFORWARD` (the dropped correction is ramped out by the slew limit).
+    ///
+    /// **Feedback off**, or a **missing** sample in either case (a silent sensor or link,
+    /// [`LoopCore::stopped`]): the first fault is latched ([`LoopCore::sensor_fault`]); from then
+    /// on the trajectory still advances but the command ramps to 0 A at the slew limit and holds
+    /// it, flagged `SENSOR_FAULT`, until the loop is re-initialized (a restart). A valid sample
+    /// is kept in [`LoopCore::measured_m`] and the tick runs as [`ControlLoop::tick`].
     #[inline]
     pub fn tick_sensed<const N: usize>(
         &self,
@@ -334,9 +386,41 @@ impl<'m> ControlLoop<'m> {
         let core = &mut state.core;
         match sample {
             Ok(y) => core.measured_m = y,
-            Err(fault) => core.latch(fault),
+            Err(fault) => {
+                core.stopped |= fault == SensorFault::Missing;
+                core.latch(fault);
+            }
         }
-        if core.sensor_fault.is_some() {
+        if self.feedback.enabled() && !core.stopped {
+            if core.sensor_fault.is_some() {
+                core.feedback.fell_back = true;
+            } else if let Ok(y) = sample {
+                let now = core.last_desired;
+                let limited = core.last_flags.has(CommandFlags::CURRENT_LIMITED)
+                    || core.last_flags.has(CommandFlags::U_CLAMPED);
+                if !self
+                    .feedback
+                    .observe(&mut core.feedback, y.to_bits(), y, &now, limited)
+                {
+                    core.latch(SensorFault::Stuck);
+                }
+            }
+            let desired = self.trajectory.step(&mut core.trajectory);
+            let corrected = self
+                .feedback
+                .correct(&mut core.feedback, core.trajectory.x, &desired);
+            let mut out = self.command_with_fast(kind, state, &corrected);
+            out.desired = desired;
+            state.core.last_desired = desired;
+            if state.core.feedback.fell_back {
+                out.flags = CommandFlags(
+                    out.flags.0 | CommandFlags::SENSOR_FAULT | CommandFlags::FEEDFORWARD,
+                );
+            }
+            state.core.last_flags = out.flags;
+            return out;
+        }
+        if core.sensor_fault.is_some() || core.stopped {
             let desired = self.trajectory.step(&mut core.trajectory);
             let (current_a, flags) = self.limiter.ramp_to_zero(&mut core.last_current_a);
             let c = &mut core.counters;
@@ -515,8 +599,11 @@ mod tests {
 
     #[test]
     fn a_sensor_fault_latches_and_ramps_the_coil_to_zero_at_the_slew_limit() {
+        // Feedback off (with it on, the loop falls back to the feedforward instead: the tests
+        // of `feedback`).
         let p = &BAKED_PARAMETERS;
         let lp = ControlLoop::new(&BAKED_MEASURE, p).unwrap();
+        let lp = lp.with_feedback(lp.feedback().off());
         let mut st: LoopState<N> = lp.init(InverseKind::Dynamic);
         let sensor = *lp.sensor();
         // Run one trajectory period (100 Hz scale: ~100 ticks) to find the largest command,

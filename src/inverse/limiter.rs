@@ -36,6 +36,9 @@ impl CommandFlags {
     pub const CONDITIONING: u8 = 32;
     /// The command plays a measurement programme (`ControlLoop::measure_sensed`).
     pub const MEASURE: u8 = 64;
+    /// The displacement feedback fell back to the feedforward alone (a sensor fault with the
+    /// feedback on).
+    pub const FEEDFORWARD: u8 = 128;
 
     /// Whether `flag` is set.
     pub fn has(self, flag: u8) -> bool {

@@ -13,6 +13,7 @@
 mod conditioning;
 mod control_loop;
 mod dynamic;
+pub mod feedback;
 mod inverter;
 mod limiter;
 mod static_inverse;
@@ -26,6 +27,7 @@ pub use control_loop::{
     TickOutput,
 };
 pub use dynamic::DynamicInverse;
+pub use feedback::{FeedbackError, FeedbackLaw, FeedbackState};
 pub use inverter::{
     EverettBisectionInverter, FastInverter, Inverted, NaiveInverter, PreisachInverter,
     RelayGridInverter,

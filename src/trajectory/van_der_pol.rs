@@ -120,6 +120,10 @@ pub struct VanDerPol {
     scale_m: f32,
     peak_x: f32,
     start: VanDerPolState,
+    /// The limit cycle's period in control steps (measured, fractional).
+    period_steps: f32,
+    /// Phase of the start state, cycles after an upward zero crossing of `x`, in `[0, 1)`.
+    start_phase_cycles: f32,
 }
 
 impl VanDerPol {
@@ -183,16 +187,42 @@ impl VanDerPol {
             scale_m: 0.0,
             peak_x: 0.0,
             start: VanDerPolState { x: 2.0, v: 0.0 },
+            period_steps: 0.0,
+            start_phase_cycles: 0.0,
         };
         let mut state = generator.start;
         for _ in 0..(settle_steps as u32) {
             generator.rk4(&mut state);
         }
         let mut peak = 0.0f32;
-        for _ in 0..(measure_steps as u32) {
+        // Upward zero crossings of x (linearly interpolated, in steps from the window's start):
+        // the window spans two estimated periods, each an upper bound of the true one, so it
+        // holds at least two crossings.
+        let (mut first, mut last, mut crossings) = (0.0f32, 0.0f32, 0u32);
+        let n_measure = measure_steps as u32;
+        for k in 0..n_measure {
+            let before = state.x;
             generator.rk4(&mut state);
             peak = peak.max(libm::fabsf(state.x));
+            if before < 0.0 && state.x >= 0.0 {
+                let at = k as f32 + before / (before - state.x);
+                if crossings == 0 {
+                    first = at;
+                }
+                last = at;
+                crossings += 1;
+            }
         }
+        if crossings < 2 {
+            // Not an oscillation over the window (cannot happen for μ >= 0 on the cycle).
+            return Err(TrajectoryError::Invalid {
+                field: "trajectory.van_der_pol_mu",
+                value: mu,
+            });
+        }
+        generator.period_steps = (last - first) / (crossings - 1) as f32;
+        let phase = (n_measure as f32 - last) / generator.period_steps;
+        generator.start_phase_cycles = phase - libm::floorf(phase);
         // The samples miss the true extremum by at most the parabola deficit: at an extremum
         // v = 0, so x'' = v' = -x there, and the nearest sample is within h/2, hence
         // x_peak - x_sample <= x_peak · h² / 8. Inflating by that keeps every sample in the band.
@@ -205,6 +235,18 @@ impl VanDerPol {
     /// The settled state on the limit cycle to start from.
     pub fn start_state(&self) -> VanDerPolState {
         self.start
+    }
+
+    /// The limit cycle's period in control steps, measured between upward zero crossings of `x`
+    /// (fractional: the cycle is not a whole number of steps in general).
+    pub fn period_steps(&self) -> f32 {
+        self.period_steps
+    }
+
+    /// The phase of [`VanDerPol::start_state`] on the cycle, in cycles since an upward zero
+    /// crossing of `x` (`[0, 1)`).
+    pub fn start_phase_cycles(&self) -> f32 {
+        self.start_phase_cycles
     }
 
     /// The measured limit-cycle peak `max |x|` (≈ 2).
@@ -269,6 +311,39 @@ mod tests {
         t.van_der_pol_mu = mu;
         t.frequency_scale_hz = f;
         (t, BAKED_PARAMETERS.control)
+    }
+
+    #[test]
+    fn period_and_start_phase_match_the_zero_crossings() {
+        // Run on from the start state: the first upward crossing must come after
+        // (1 − start phase) periods, and the later ones one period apart, to 0.05 steps.
+        for &(mu, f) in &[(0.2f32, 50.0f32), (1.0, 100.0), (3.0, 20.0)] {
+            let (t, c) = settings(mu, f);
+            let vdp = VanDerPol::new(&t, &c).expect("valid settings");
+            let period = vdp.period_steps();
+            let mut s = vdp.start_state();
+            let mut crossings = heapless::Vec::<f32, 16>::new();
+            for k in 0..(4.5 * period) as usize {
+                let before = s.x;
+                vdp.step(&mut s);
+                if before < 0.0 && s.x >= 0.0 {
+                    crossings.push(k as f32 + before / (before - s.x)).unwrap();
+                }
+            }
+            let expected_first = (1.0 - vdp.start_phase_cycles()) * period;
+            assert!(
+                (crossings[0] - expected_first).abs() < 0.05,
+                "mu {mu}: first crossing {} vs {expected_first}",
+                crossings[0]
+            );
+            for w in crossings.windows(2) {
+                assert!(
+                    (w[1] - w[0] - period).abs() < 0.05,
+                    "mu {mu}: {} vs {period}",
+                    w[1] - w[0]
+                );
+            }
+        }
     }
 
     #[test]

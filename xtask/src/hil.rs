@@ -105,6 +105,8 @@ pub struct HilRun {
     pub expect_exit: i32,
     /// Run the firmware's start-up conditioning (default).
     pub conditioning: bool,
+    /// Run the parameter file's displacement feedback (default); `false` passes `feedback=off`.
+    pub feedback: bool,
     /// Parameter file of the default plant (default: the baked parameters).
     pub plant_params: Option<PathBuf>,
     /// Measurement mode: the programme to stream and where to write the dataset folder.
@@ -117,7 +119,8 @@ pub struct HilRun {
 }
 
 impl HilRun {
-    fn new(out: PathBuf) -> Self {
+    /// Default settings writing into `out`.
+    pub fn new(out: PathBuf) -> Self {
         HilRun {
             plant_cmd: None,
             effects: Vec::new(),
@@ -129,6 +132,7 @@ impl HilRun {
             inject: None,
             expect_exit: 0,
             conditioning: true,
+            feedback: true,
             plant_params: None,
             measure: None,
             elf: None,
@@ -159,7 +163,7 @@ struct TickRow {
 /// Builds `maglab` (dev profile: the simulating crates are optimized there, and `cargo xtask
 /// test` has already built it for the workspace tests, so this step only checks it is current)
 /// and returns its path.
-fn maglab(ctx: &Ctx) -> Result<PathBuf> {
+pub fn maglab(ctx: &Ctx) -> Result<PathBuf> {
     run_checked(ctx.cargo(&["build", "-p", "maglab", "--quiet"]))?;
     let target = std::env::var_os("CARGO_TARGET_DIR")
         .map(PathBuf::from)
@@ -238,6 +242,9 @@ pub fn run_once(
     }
     if !run.conditioning {
         semi.push_str(",arg=condition=off");
+    }
+    if !run.feedback {
+        semi.push_str(",arg=feedback=off");
     }
     let mut qemu = qemu_command(
         QEMU_TIMEOUT_S,
@@ -810,18 +817,35 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
         .into_iter()
         .enumerate()
     {
+        // Feedforward only: this compares the models (the feedback would hide their error).
         let mut t = HilRun::new(base.join(format!("track_{name}")));
         t.plant_params = Some(plant.clone());
-        t.elf = fw;
+        t.elf = fw.clone();
+        t.feedback = false;
         let r = run_once(ctx, elf, Some(exe), &t)?;
         let (a, b, _) = r.tracking.context("no tracking error")?;
         rms[k] = a;
         writeln!(
             s,
-            "  tracking on that plant, firmware baked with the {name} parameters: RMS {a:.3} %, max {b:.2} % of peak-to-peak"
+            "  tracking on that plant, feedforward, firmware baked with the {name} parameters: RMS {a:.3} %, max {b:.2} % of peak-to-peak"
         )?;
+        if let Some(fw) = fw {
+            let mut t = HilRun::new(base.join("track_identified_feedback"));
+            t.plant_params = Some(plant.clone());
+            t.elf = Some(fw);
+            let r = run_once(ctx, elf, Some(exe), &t)?;
+            let (a, b, _) = r.tracking.context("no tracking error")?;
+            writeln!(
+                s,
+                "  the same with the parameter file's feedback on: RMS {a:.3} %, max {b:.2} % of peak-to-peak (whole run, learning included)"
+            )?;
+        }
     }
-    writeln!(s, "  default / identified: {:.1}x", rms[0] / rms[1])?;
+    writeln!(
+        s,
+        "  default / identified (feedforward): {:.1}x",
+        rms[0] / rms[1]
+    )?;
     print!("{s}");
     ensure!(
         rms[1] <= 1.0,
@@ -896,7 +920,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     // Start-up conditioning against unknown prior histories (20 random current levels within
     // ±I_max before power-up), with and without it.
     let mut table = String::from(
-        "start-up conditioning vs a random prior history (20 levels), 0.3 s of tracking:\n  seed  with: RMS %  max %   without: RMS %  max %\n",
+        "start-up conditioning vs a random prior history (20 levels), 0.3 s of feedforward tracking:\n  seed  with: RMS %  max %   without: RMS %  max %\n",
     );
     for seed in 1..=3u64 {
         let mut rms = [0.0f64; 2];
@@ -914,6 +938,8 @@ pub fn check(ctx: &Ctx) -> Result<String> {
             c.prior_history = 20;
             c.seed = seed;
             c.conditioning = conditioning;
+            // Feedforward only: what conditioning is for is the memory the inverse assumes.
+            c.feedback = false;
             let r = run_once(ctx, &elf, Some(&exe), &c)?;
             let (a, b, _) = r.tracking.context("no tracking error")?;
             rms[k] = a;
@@ -935,15 +961,18 @@ pub fn check(ctx: &Ctx) -> Result<String> {
 
     summary.push_str(&end_to_end(ctx, &elf, &exe, &base.join("e2e"))?);
 
-    for (name, inject, exit) in [
-        ("nan", Inject::Nan(1_000), 7),
-        ("silent", Inject::Silent(1_000), 8),
-        ("garbage", Inject::Garbage(1_000), 8),
+    // (name, fault, exit status, feedback on, the run must end at 0 A)
+    for (name, inject, exit, feedback, zero) in [
+        ("nan", Inject::Nan(1_000), 7, true, false),
+        ("nan_feedback_off", Inject::Nan(1_000), 7, false, true),
+        ("silent", Inject::Silent(1_000), 8, true, true),
+        ("garbage", Inject::Garbage(1_000), 8, true, true),
     ] {
         let mut f = HilRun::new(base.join(format!("fault_{name}")));
         f.ticks = 2_000;
         f.inject = Some(inject);
         f.expect_exit = exit;
+        f.feedback = feedback;
         let r = run_once(ctx, &elf, Some(&exe), &f)?;
         summary.push_str(&r.summary);
         let rows = std::fs::read_to_string(f.out.join("link.csv"))?;
@@ -959,10 +988,27 @@ pub fn check(ctx: &Ctx) -> Result<String> {
             .nth(4)
             .and_then(|c| c.parse().ok())
             .with_context(|| format!("{name}: no current in the last link row `{last}`"))?;
-        ensure!(
-            current == 0.0,
-            "{name}: the last command is {current} A, not 0 A"
-        );
+        if zero {
+            ensure!(
+                current == 0.0,
+                "{name}: the last command is {current} A, not 0 A"
+            );
+        } else {
+            // Feedback on: the loop fell back to the feedforward, which keeps driving the coil;
+            // every command from the fault on carries SENSOR_FAULT | FEEDFORWARD (the firmware
+            // checks that itself, exit 3 otherwise).
+            let flags: u8 = last
+                .split(',')
+                .nth(6)
+                .and_then(|c| c.parse().ok())
+                .unwrap_or(0);
+            ensure!(
+                current != 0.0
+                    && flags & (CommandFlags::SENSOR_FAULT | CommandFlags::FEEDFORWARD)
+                        == CommandFlags::SENSOR_FAULT | CommandFlags::FEEDFORWARD,
+                "{name}: the feedforward fallback should keep tracking, flagged: got {current} A, flags {flags}"
+            );
+        }
     }
     std::fs::write(base.join("summary.txt"), &summary)?;
     Ok(summary)
@@ -981,6 +1027,7 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
         match a.as_str() {
             "--check" => return check(ctx).map(|_| ()),
             "--plant-cmd" => run.plant_cmd = Some(value(a)?),
+            "--feedback-off" => run.feedback = false,
             "--effect" => run.effects.push(value(a)?),
             "--noise-m" => {
                 let v = value(a)?;

@@ -24,6 +24,7 @@ mod fuzz;
 mod hil;
 mod nucleo;
 mod qemu;
+mod robustness;
 mod setup;
 mod test;
 mod util;
@@ -58,6 +59,11 @@ const COMMANDS: &[Command] = &[
         name: "hil",
         about: "virtual bench: the firmware under QEMU in lock-step with a plant program over UART0 (docs/hil.md) [--plant-cmd CMD] [--effect E] [--ticks N] [--inject KIND@TICK] [--check]",
         run: hil::run,
+    },
+    Command {
+        name: "robustness",
+        about: "closed-loop robustness matrix: every case on the host, three as firmware under QEMU, open vs closed loop -> out/robustness/robustness.csv, table, plot [maglab robustness options: --gain-scale G, --static-inverse, --structure S ...]",
+        run: robustness::run,
     },
     Command {
         name: "qemu",

@@ -130,8 +130,13 @@ pub fn steps() -> Vec<Step> {
         },
         Step {
             name: "hil",
-            purpose: "virtual bench: firmware-hil under QEMU in lock-step with the default plant (1 s, tracking <= 1 %, <= 30 s wall) and a Python plant (also started late); conditioning vs random histories; measure -> identify -> re-bake -> track on a plant with other parameters (<= 1 %, >= 5x better than the defaults); NaN sample, silent link, corrupted frame end at 0 A (exits 7/8)",
+            purpose: "virtual bench: firmware-hil under QEMU in lock-step with the default plant (1 s, tracking <= 1 %, <= 30 s wall) and a Python plant (also started late); conditioning vs random histories; measure -> identify -> re-bake -> track on a plant with other parameters (<= 1 %, >= 5x better than the defaults); NaN sample (feedback on: feedforward fallback; off: 0 A), silent link, corrupted frame (0 A) (exits 7/8)",
             action: Action::Func(|ctx| crate::hil::check(ctx).map(|_| ())),
+        },
+        Step {
+            name: "robustness",
+            purpose: "closed loop vs open loop on every robustness case (host) and three as firmware under QEMU: RMS <= 1 % of p-p in every row but backlash, >= 5x below the open loop in every rod-side row",
+            action: Action::Func(|ctx| crate::robustness::check(ctx).map(|_| ())),
         },
         Step {
             name: "nucleo",

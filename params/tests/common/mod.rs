@@ -109,6 +109,38 @@ pub fn cases() -> Vec<Case> {
             text: edit(|v| v["amplifier"]["compliance_voltage_v"] = Value::from(10.0)),
         },
         Case {
+            name: "feedback_gain_out_of_range",
+            field: "control.feedback.learning_gain",
+            reason_contains: "must be in [0, 2]",
+            text: edit(|v| {
+                v["control"]["feedback"] = serde_json::json!({
+                    "structure": "repetitive", "learning_gain": 3.0, "learning_harmonics": 6,
+                    "learning_leak_per_cycle": 0.002, "proportional_gain": 0.0,
+                    "integral_gain_per_s": 0.0, "correction_limit_m": 2.5e-5,
+                    "stuck_sensor_ticks": 200
+                })
+            }),
+        },
+        Case {
+            name: "feedback_no_harmonics",
+            field: "control.feedback.learning_harmonics",
+            reason_contains: "must be in 1..=16",
+            text: edit(|v| {
+                v["control"]["feedback"] = serde_json::json!({
+                    "structure": "repetitive", "learning_gain": 0.3, "learning_harmonics": 0,
+                    "learning_leak_per_cycle": 0.002, "proportional_gain": 0.0,
+                    "integral_gain_per_s": 0.0, "correction_limit_m": 2.5e-5,
+                    "stuck_sensor_ticks": 200
+                })
+            }),
+        },
+        Case {
+            name: "feedback_unknown_structure",
+            field: "control.feedback.structure",
+            reason_contains: "unknown variant",
+            text: edit(|v| v["control"]["feedback"]["structure"] = Value::from("pid")),
+        },
+        Case {
             name: "wrong_number_of_weights",
             field: "preisach.weights_a_per_m",
             reason_contains: "need 325 weights, the file has 324",
