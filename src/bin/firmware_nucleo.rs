@@ -104,8 +104,8 @@ mod firmware {
     /// again; counted ([`OVERRUNS`], logged every second). The pending interrupt then runs at
     /// once (late, no step skipped).
     /// **Work**: one `ControlLoop::tick_sensed` with the displacement feedback (the virtual bench
-    /// measures it with the sensor read and the DAC frame: BENCHMARKS.md, about 1,070
-    /// instructions median and 2,200 worst case, far inside the 18,000-cycle period), one 24-bit SPI frame (2.1 µs at 11.25 MHz; every status wait bounded by
+    /// measures it with the sensor read and the DAC frame: BENCHMARKS.md, 1,071 instructions
+    /// median and 1,386 worst case on the robustness matrix, far inside the 18,000-cycle period), one 24-bit SPI frame (2.1 µs at 11.25 MHz; every status wait bounded by
     /// `polled_spi::MAX_STATUS_POLLS`, a timeout is counted), the watchdog feed, counter updates.
     /// No allocation, no logging, no unbounded wait, no panic path (link-time proof with
     /// `--features panic-never`).

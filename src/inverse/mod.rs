@@ -24,7 +24,7 @@ pub use conditioning::{
 };
 pub use control_loop::{
     ControlLoop, InverseKind, LoopCore, LoopCounters, LoopError, LoopState, NaiveLoopState,
-    TickOutput,
+    TickOutput, MEMORY_RESOLUTION_CELLS2,
 };
 pub use dynamic::DynamicInverse;
 pub use feedback::{FeedbackError, FeedbackLaw, FeedbackState};
