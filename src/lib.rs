@@ -11,6 +11,8 @@
 //! * [`params`]: the actuator parameters baked in at build time from the JSON file.
 //! * [`trajectory`]: the Van der Pol desired trajectory integrated on the chip.
 //! * [`sensor`]: the displacement sample of every tick, scaled and checked.
+//! * [`programme`]: the identification programme the firmware plays in measurement mode.
+//! * [`record`]: the measurement record the firmware streams while it plays it (queue, batches).
 //! * [`link`]: the frames of the lock-step plant link of the virtual bench (`docs/hil.md`).
 //! * [`sqrt`]: the square root, on the FPU's `VSQRT.F32` on the Cortex-M4F.
 //! * [`output`]: current command → DAC code (fixed point) → SPI DAC through embedded-hal.
@@ -34,6 +36,8 @@ pub mod model;
 pub mod output;
 pub mod params;
 pub mod preisach;
+pub mod programme;
+pub mod record;
 pub mod sensor;
 pub mod sqrt;
 pub mod trajectory;

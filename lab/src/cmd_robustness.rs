@@ -25,7 +25,7 @@ use crate::plot::{Figure, Panel, Series, PALETTE};
 use actuator_params::ActuatorParams;
 use anyhow::{bail, Context, Result};
 use clap::Args as ClapArgs;
-use magctl::inverse::{ControlLoop, FeedbackLaw, InverseKind, LoopState};
+use magctl::inverse::{ControlLoop, InverseKind, LoopState};
 use magctl::params::{ActuatorParameters, Feedback};
 use magctl::sensor::SensorScale;
 use maglab_identify::dataset_info::StartState;
@@ -369,17 +369,10 @@ pub fn matrix(
                 params.sensor.sample_delay_s = d as f32;
             }
             let loop_for = |f: &Feedback| -> Result<ControlLoop<'_>> {
-                let control = ControlLoop::new(&measure, &params).map_err(|e| {
-                    anyhow::anyhow!("{}: invalid control settings: {e:?}", case.name)
-                })?;
-                let law = FeedbackLaw::new(
-                    f,
-                    params.control.sample_rate_hz,
-                    control.trajectory().period_steps(),
-                    params.sensor.sample_delay_s,
-                )
-                .map_err(|e| anyhow::anyhow!("feedback settings: {} = {}", e.field, e.value))?;
-                Ok(control.with_feedback(law))
+                let mut with = params;
+                with.control.feedback = *f;
+                ControlLoop::new(&measure, &with)
+                    .map_err(|e| anyhow::anyhow!("{}: invalid control settings: {e:?}", case.name))
             };
             let mut off = *feedback;
             off.structure = magctl::params::FeedbackStructure::Off;

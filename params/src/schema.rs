@@ -128,8 +128,9 @@ pub struct Feedback {
     pub integral_gain_per_s: f64,
     /// Bound on the correction (each table entry and the integrator), m, > 0.
     pub correction_limit_m: f64,
-    /// A sample bit-identical for this many ticks in a row while the trajectory moves is a stuck
-    /// sensor (the loop falls back to feedforward), >= 2.
+    /// A sample bit-identical for this many ticks in a row, while the desired displacement moved
+    /// more than a tenth of the trajectory's band, is a stuck sensor (the loop falls back to
+    /// feedforward), >= 2.
     pub stuck_sensor_ticks: u32,
 }
 

@@ -46,9 +46,17 @@
 //! stroke), flagged `MEASURE` (64). The host writes the dataset folder (`cargo xtask hil
 //! --measure`). No conditioning: the programme carries its own.
 //!
+//! **Local measurement** (`mode=measure-local`): the firmware plays the compiled-in programme
+//! itself (`magctl::programme`, as the NUCLEO measurement image does) — no programme frames —
+//! and records every tick as the board does: the interrupt queues it (`magctl::record`), thread
+//! mode logs the batches with defmt (`MEAS …` lines, here over semihosting, on the board over
+//! RTT), which `cargo xtask record` turns into the dataset folder. The command frames still carry
+//! the current and the reading, so the bench checks the record against the link.
+//!
 //! Command line (semihosting): `ticks=N` tracking or programme ticks (default: one second at the
 //! control rate), `inverse=static` (default dynamic), `condition=off`, `mode=measure`,
-//! `feedback=off` (feedforward only, whatever the parameter file says).
+//! `mode=measure-local` (its tick count is the programme's), `feedback=off` (feedforward only,
+//! whatever the parameter file says).
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 
@@ -81,6 +89,8 @@ mod firmware {
     };
     use magctl::output::{CurrentOutput, DacScale};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
+    use magctl::programme::IdentificationProgramme;
+    use magctl::record::{RecordDrain, RecordQueue, Recorder};
     use magctl::sensor::SensorFault;
 
     /// Preisach memory capacity (reversal points) of the controller.
@@ -107,6 +117,8 @@ mod firmware {
         kind: InverseKind,
         /// Measurement mode: play the streamed programme instead of tracking.
         measure: bool,
+        /// Local measurement: the compiled-in programme and the record's producer.
+        recorder: Option<Recorder<'static>>,
         state: LoopState<CAPACITY>,
         /// The start-up conditioning sequence, while it runs.
         conditioning: Option<(Conditioning, ConditioningState)>,
@@ -155,9 +167,14 @@ mod firmware {
                 KIND_SAMPLE_METRES => Ok(f32::from_bits(bits)),
                 _ => Err(SensorFault::Missing),
             };
-            let programme_a = f32::from_bits(PROGRAMME_BITS.load(Ordering::Relaxed));
-            app.control
-                .measure_sensed(&mut app.state, programme_a, reading)
+            match &mut app.recorder {
+                Some(recorder) => recorder.tick(&app.control, &mut app.state, reading),
+                None => {
+                    let programme_a = f32::from_bits(PROGRAMME_BITS.load(Ordering::Relaxed));
+                    app.control
+                        .measure_sensed(&mut app.state, programme_a, reading)
+                }
+            }
         } else {
             tracking_tick(app, kind, bits)
         };
@@ -263,6 +280,44 @@ mod firmware {
         (digits > 0).then_some(value)
     }
 
+    /// Logs the programme's header lines (`MEAS-BEGIN`, one `MEAS-EXP` per experiment) that
+    /// `cargo xtask record` reads with the batches.
+    fn log_programme(programme: &IdentificationProgramme, rate_hz: f32) {
+        defmt::info!(
+            "MEAS-BEGIN {=f32} Hz {=u32} experiments negative-saturation",
+            rate_hz,
+            magctl::programme::EXPERIMENTS as u32
+        );
+        let mut k = 0;
+        while let Some(e) = programme.experiment(k) {
+            let (kind, a, b, c) = e.kind.fields();
+            defmt::info!(
+                "MEAS-EXP {=u32} {=u32} {=str} {=f32} {=f32} {=f32}",
+                k as u32,
+                e.ticks,
+                kind,
+                a,
+                b,
+                c
+            );
+            k += 1;
+        }
+    }
+
+    /// Logs every ready batch of the record (`MEAS <experiment> <first tick> <bytes>`); with
+    /// `flush`, the last partial one too.
+    fn log_batches(drain: &mut RecordDrain<'static>, flush: bool) {
+        while let Some(b) = drain.poll(flush) {
+            defmt::info!(
+                "MEAS {=u8} {=u32} {=[u8]}",
+                b.experiment(),
+                b.first_tick(),
+                b.bytes()
+            );
+            drain.logged();
+        }
+    }
+
     fn end(uart: &mut CmsdkUart, seq: u16, status: u32) -> ! {
         let frame = CommandFrame {
             kind: KIND_END,
@@ -292,6 +347,7 @@ mod firmware {
         let line = line_buf.get(..n).unwrap_or(&[]);
         let tracking_ticks = arg_u32(line, b"ticks=").unwrap_or(rate_hz as u32);
         let measure = line.windows(12).any(|w| w == b"mode=measure");
+        let local = line.windows(18).any(|w| w == b"mode=measure-local");
         let condition = !measure && !line.windows(13).any(|w| w == b"condition=off");
         let feedback_off = line.windows(12).any(|w| w == b"feedback=off");
         let kind = if line.windows(14).any(|w| w == b"inverse=static") {
@@ -341,7 +397,33 @@ mod firmware {
         };
         let conditioning_ticks =
             conditioning.map_or(0, |(c, _)| c.ticks(0.0, state.core.last_current_a));
-        let ticks = tracking_ticks.saturating_add(conditioning_ticks);
+        let mut ticks = tracking_ticks.saturating_add(conditioning_ticks);
+        let mut drain = None;
+        let recorder = if local {
+            let Ok(programme) = IdentificationProgramme::new(
+                control.limiter(),
+                BAKED_PARAMETERS.actuator.coil_factor_per_m,
+                BAKED_MEASURE.h_min_a_per_m(),
+                BAKED_MEASURE.h_max_a_per_m(),
+                rate_hz,
+            ) else {
+                defmt::error!("the identification programme cannot run with the baked parameters");
+                semihosting::exit(5)
+            };
+            let Some(queue) = cortex_m::singleton!(: RecordQueue = RecordQueue::new()) else {
+                semihosting::exit(4)
+            };
+            let (producer, consumer) = queue.split();
+            drain = Some(RecordDrain::new(consumer));
+            // The programme, then the ramp to 0 A at the slew limit.
+            let l = control.limiter();
+            let ramp = libm::ceilf(l.limit_a() / l.max_step_a()) as u32 + 2;
+            ticks = programme.total_ticks(0.0).saturating_add(ramp);
+            log_programme(&programme, rate_hz);
+            Some(Recorder::new(programme, producer))
+        } else {
+            None
+        };
         defmt::info!(
             "firmware-hil: {=u32} conditioning + {=u32} {=str} ticks at {=f32} Hz, {=str} inverse, lock-step over UART0",
             conditioning_ticks,
@@ -358,6 +440,7 @@ mod firmware {
             control,
             kind,
             measure,
+            recorder,
             state,
             conditioning,
             dac,
@@ -398,7 +481,7 @@ mod firmware {
         };
         while tick < ticks || (link_fault_at.is_some() && !ramp_done && tick < ticks + ramp_ticks) {
             let seq = tick as u16;
-            if measure && link_fault_at.is_none() {
+            if measure && !local && link_fault_at.is_none() {
                 match receive(&mut uart, &mut assembler, seq, ProgrammeFrame::decode) {
                     Ok(p) => PROGRAMME_BITS.store(p.current_a.to_bits(), Ordering::Relaxed),
                     Err(()) => link_fault_at = Some(tick),
@@ -440,6 +523,9 @@ mod firmware {
                     ramp_done |= cmd.value == 0.0;
                 }
             }
+            if let Some(d) = &mut drain {
+                log_batches(d, false);
+            }
             if link_fault_at.is_none() {
                 if uart.write_all(&cmd.encode(), MAX_TX_POLLS).is_err() {
                     link_fault_at = Some(tick);
@@ -457,6 +543,17 @@ mod firmware {
         NVIC::mask(Timer0Irq);
         // SAFETY: the interrupt is masked: thread mode is APP's only user now.
         let spi_timeouts = unsafe { APP.get_mut() }.map_or(0, |a| a.spi_timeouts);
+        if let Some(d) = &mut drain {
+            log_batches(d, true);
+            // SAFETY: as above.
+            let (lost, faults) = unsafe { APP.get_mut() }.map_or((0, 0), |a| {
+                (
+                    a.recorder.as_ref().map_or(0, |r| r.lost()),
+                    a.state.core.counters.sensor_faults,
+                )
+            });
+            defmt::info!("MEAS-END {=u32} lost {=u32} sensor-faults", lost, faults);
+        }
         defmt::info!(
             "ticks {=u32}; interrupt instructions min {=u16} max {=u16}; SPI timeouts {=u32}",
             tick,

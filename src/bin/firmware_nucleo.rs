@@ -15,6 +15,17 @@
 //! clocks is write 0 A again (a reset does not reset the DAC), then it ramps to the controller's
 //! initial current at the slew limit, starts the watchdog and hands the state to the interrupt.
 //!
+//! **Measurement image** (feature `measurement-mode`, `cargo xtask nucleo` builds it as
+//! `out/nucleo/firmware-nucleo-measure.elf`): instead of tracking, the interrupt plays the
+//! compiled-in identification programme (`magctl::programme`: conditioning, FORC sweep, biased
+//! sines) through the output limiter and records every tick — applied current, sensor reading
+//! (checked only against the ADC's range), flags — into a bounded queue (`magctl::record`);
+//! thread mode logs the batches over RTT when they fit (`MEAS …` lines, never truncated), and
+//! `cargo xtask record` turns probe-rs's output into the dataset folder `maglab identify` reads.
+//! If the probe does not drain the record fast enough the queue fills, the tick is counted as
+//! lost and the programme ends at 0 A (`MEAS-END` reports it; the recorder refuses an
+//! incomplete record). After the programme the coil ramps to 0 A and stays there.
+//!
 //! Flash and run with probe-rs (`probe-rs run --chip STM32F446RETx <elf>`, see README); the
 //! fatal paths (panic, HardFault, unexpected interrupt) command 0 A and halt at a breakpoint
 //! (`magctl::board::nucleo_f446re::fatal`).
@@ -44,6 +55,8 @@ mod firmware {
     use magctl::inverse::{CommandFlags, ControlLoop, InverseKind, LoopState};
     use magctl::output::{CurrentOutput, DacScale, SpiDac};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
+    #[cfg(feature = "measurement-mode")]
+    use magctl::record::{RecordDrain, RecordQueue, Recorder};
     use stm32f4::stm32f446::{self as pac, interrupt, Interrupt};
 
     /// Preisach memory capacity (reversal points) of the controller.
@@ -69,6 +82,9 @@ mod firmware {
         adc: DisplacementAdc,
         watchdog: Watchdog,
         consecutive_dac_timeouts: u32,
+        /// Measurement image: the programme being played and the record's producer.
+        #[cfg(feature = "measurement-mode")]
+        recorder: Recorder<'static>,
     }
 
     /// The interrupt's state, handed over by `main` before TIM2 is unmasked.
@@ -84,6 +100,13 @@ mod firmware {
     static MERGES: AtomicU32 = AtomicU32::new(0);
     /// Rejected sensor samples (the first latches the fault; mirrored each interrupt).
     static SENSOR_FAULTS: AtomicU32 = AtomicU32::new(0);
+    /// Measurement image: ticks that did not fit into the record queue, and whether the
+    /// programme has ended (mirrored each interrupt).
+    #[cfg(feature = "measurement-mode")]
+    static RECORD_LOST: AtomicU32 = AtomicU32::new(0);
+    #[cfg(feature = "measurement-mode")]
+    static RECORD_ENDED: core::sync::atomic::AtomicBool =
+        core::sync::atomic::AtomicBool::new(false);
     /// Fewest / most core cycles spent in one interrupt (DWT).
     static MIN_CYCLES: AtomicU32 = AtomicU32::new(u32::MAX);
     static MAX_CYCLES: AtomicU32 = AtomicU32::new(0);
@@ -124,11 +147,27 @@ mod firmware {
         // latches the sensor fault and the command ramps to 0 A; a bad one (out of range,
         // stuck) makes the loop fall back to the feedforward alone (feedback on) or ramps to 0 A
         // (feedback off).
-        let sample = app
-            .adc
-            .sample()
-            .and_then(|count| app.control.sensor().displacement_m(count));
-        let out = app.control.tick_sensed(INVERSE, &mut app.state, sample);
+        #[cfg(not(feature = "measurement-mode"))]
+        let out = {
+            let sample = app
+                .adc
+                .sample()
+                .and_then(|count| app.control.sensor().displacement_m(count));
+            app.control.tick_sensed(INVERSE, &mut app.state, sample)
+        };
+        // Measurement image: the programme's current; the reading is checked only against the
+        // ADC's range (identification drives the rod over its whole stroke).
+        #[cfg(feature = "measurement-mode")]
+        let out = {
+            let reading = app
+                .adc
+                .sample()
+                .and_then(|count| app.control.sensor().reading_m(count));
+            let out = app.recorder.tick(&app.control, &mut app.state, reading);
+            RECORD_LOST.store(app.recorder.lost(), Ordering::Relaxed);
+            RECORD_ENDED.store(app.recorder.ended(), Ordering::Release);
+            out
+        };
         SENSOR_FAULTS.store(app.state.core.counters.sensor_faults, Ordering::Relaxed);
         if app.dac.write_current(out.current_a).is_err() {
             SPI_TIMEOUTS.fetch_add(1, Ordering::Relaxed);
@@ -166,6 +205,49 @@ mod firmware {
         MIN_CYCLES.fetch_min(cycles, Ordering::Relaxed);
         MAX_CYCLES.fetch_max(cycles, Ordering::Relaxed);
         TICKS.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Logs the programme's header lines (`MEAS-BEGIN`, one `MEAS-EXP` per experiment) that
+    /// `cargo xtask record` reads with the batches.
+    #[cfg(feature = "measurement-mode")]
+    fn log_programme(programme: &magctl::programme::IdentificationProgramme, rate_hz: f32) {
+        defmt::info!(
+            "MEAS-BEGIN {=f32} Hz {=u32} experiments negative-saturation",
+            rate_hz,
+            magctl::programme::EXPERIMENTS as u32
+        );
+        let mut k = 0;
+        while let Some(e) = programme.experiment(k) {
+            let (kind, a, b, c) = e.kind.fields();
+            defmt::info!(
+                "MEAS-EXP {=u32} {=u32} {=str} {=f32} {=f32} {=f32}",
+                k as u32,
+                e.ticks,
+                kind,
+                a,
+                b,
+                c
+            );
+            k += 1;
+        }
+    }
+
+    /// Logs the ready batches of the record while they fit in the RTT ring (a batch that does
+    /// not fit waits in the drain for the probe; the queue behind it keeps filling).
+    #[cfg(feature = "measurement-mode")]
+    fn log_batches(drain: &mut RecordDrain<'static>, flush: bool) {
+        /// A batch's frame, worst case (header, payload, rzCOBS overhead, delimiter).
+        const FRAME_BYTES_MAX: usize = 256;
+        while rtt::free_bytes() >= FRAME_BYTES_MAX {
+            let Some(b) = drain.poll(flush) else { break };
+            defmt::info!(
+                "MEAS {=u8} {=u32} {=[u8]}",
+                b.experiment(),
+                b.first_tick(),
+                b.bytes()
+            );
+            drain.logged();
+        }
     }
 
     fn halt(reason: &str) -> ! {
@@ -211,6 +293,34 @@ mod firmware {
             Err(_) => halt("invalid control settings in the baked parameters"),
         };
         let state = control.init::<CAPACITY>(INVERSE);
+        #[cfg(feature = "measurement-mode")]
+        let (recorder, mut drain) = {
+            let Ok(programme) = magctl::programme::IdentificationProgramme::new(
+                control.limiter(),
+                p.actuator.coil_factor_per_m,
+                BAKED_MEASURE.h_min_a_per_m(),
+                BAKED_MEASURE.h_max_a_per_m(),
+                p.control.sample_rate_hz,
+            ) else {
+                halt("the identification programme cannot run with the baked parameters")
+            };
+            let Some(queue) = cortex_m::singleton!(: RecordQueue = RecordQueue::new()) else {
+                halt("record queue taken twice")
+            };
+            let (producer, consumer) = queue.split();
+            log_programme(&programme, p.control.sample_rate_hz);
+            (
+                Recorder::new(programme, producer),
+                RecordDrain::new(consumer),
+            )
+        };
+        // The measurement programme starts from 0 A with its own conditioning: no ramp.
+        #[cfg(feature = "measurement-mode")]
+        let state = {
+            let mut state = state;
+            state.core.last_current_a = 0.0;
+            state
+        };
         let rate_hz = p.control.sample_rate_hz as u32;
         // Ramp from 0 A to the controller's initial current (the static current of the first
         // sample) at the slew limit, one step per control period (at most
@@ -247,6 +357,8 @@ mod firmware {
             adc,
             watchdog,
             consecutive_dac_timeouts: 0,
+            #[cfg(feature = "measurement-mode")]
+            recorder,
         };
         if APP.give(app).is_err() {
             halt("control state handed over twice");
@@ -255,7 +367,25 @@ mod firmware {
         unsafe { cortex_m::peripheral::NVIC::unmask(Interrupt::TIM2) };
 
         let mut next_report = rate_hz;
+        #[cfg(feature = "measurement-mode")]
+        let mut record_open = true;
         loop {
+            // Measurement image: drain the record into RTT while the programme runs (no sleep:
+            // the queue holds 51 ms), then report how it ended, once.
+            #[cfg(feature = "measurement-mode")]
+            if record_open {
+                let ended = RECORD_ENDED.load(Ordering::Acquire);
+                log_batches(&mut drain, ended);
+                if ended && drain.is_empty() {
+                    defmt::info!(
+                        "MEAS-END {=u32} lost {=u32} sensor-faults",
+                        RECORD_LOST.load(Ordering::Relaxed),
+                        SENSOR_FAULTS.load(Ordering::Relaxed)
+                    );
+                    record_open = false;
+                }
+                continue;
+            }
             cortex_m::asm::wfi();
             let ticks = TICKS.load(Ordering::Relaxed);
             if ticks >= next_report {

@@ -171,7 +171,11 @@ impl<'m> ControlLoop<'m> {
             trajectory.period_steps(),
             params.sensor.sample_delay_s,
         )
-        .map_err(LoopError::Feedback)?;
+        .map_err(LoopError::Feedback)?
+        // A sample is stuck only if the trajectory moved a tenth of its band meanwhile.
+        .with_stuck_motion(
+            0.1 * (params.trajectory.displacement_max_m - params.trajectory.displacement_min_m),
+        );
         Ok(ControlLoop {
             measure,
             trajectory,

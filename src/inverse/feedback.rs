@@ -65,7 +65,8 @@
 //! # Sensor faults
 //!
 //! A sample that is missing, non-finite, out of range, or **stuck** (bit-identical for
-//! `stuck_sensor_ticks` ticks while the trajectory moves) switches the loop back to pure
+//! `stuck_sensor_ticks` ticks, the desired displacement having meanwhile moved more than a tenth
+//! of the trajectory's band: [`FeedbackLaw::with_stuck_motion`]) switches the loop back to pure
 //! feedforward for good ([`FeedbackState::fell_back`]): the correction is dropped (ramped out by
 //! the slew limiter) and every later command is flagged `SENSOR_FAULT | FEEDFORWARD`.
 //!
@@ -120,6 +121,9 @@ pub struct FeedbackLaw {
     integral_per_tick: f32,
     limit_m: f32,
     stuck_ticks: u32,
+    /// How far the desired displacement must have moved since the sample last changed for an
+    /// unchanged sample to count as stuck, m.
+    stuck_motion_m: f32,
 }
 
 /// The feedback's state (lives in the loop state).
@@ -154,6 +158,8 @@ pub struct FeedbackState {
     pub integral_m: f32,
     /// Bits of the last sample.
     last_sample_bits: u32,
+    /// The desired displacement when the sample last changed, m.
+    desired_at_change_m: f32,
     /// Ticks in a row with an identical sample.
     pub same_sample_ticks: u32,
     /// The loop fell back to feedforward (a sensor fault); permanent until re-initialized.
@@ -268,12 +274,24 @@ impl FeedbackLaw {
             integral_per_tick: s.integral_gain_per_s / sample_rate_hz,
             limit_m: s.correction_limit_m,
             stuck_ticks: s.stuck_sensor_ticks,
+            stuck_motion_m: 0.0,
         })
     }
 
     /// The structure.
     pub fn structure(&self) -> FeedbackStructure {
         self.structure
+    }
+
+    /// The same law, with a sample counted as stuck only once the desired displacement has moved
+    /// more than `motion_m` since the sample last changed (a slow trajectory can legitimately
+    /// dwell within one ADC count for many ticks at its extremes). `ControlLoop::new` sets a tenth
+    /// of the trajectory's band.
+    pub fn with_stuck_motion(self, motion_m: f32) -> Self {
+        FeedbackLaw {
+            stuck_motion_m: if motion_m > 0.0 { motion_m } else { 0.0 },
+            ..self
+        }
     }
 
     /// The same coefficients with the feedback off (feedforward only).
@@ -310,6 +328,7 @@ impl FeedbackLaw {
             last_x: x0,
             integral_m: 0.0,
             last_sample_bits: 0,
+            desired_at_change_m: f32::NAN,
             same_sample_ticks: 0,
             fell_back: false,
             last_error_m: f32::NAN,
@@ -335,13 +354,16 @@ impl FeedbackLaw {
         }
         if sample_bits == state.last_sample_bits {
             state.same_sample_ticks = state.same_sample_ticks.saturating_add(1);
-            if state.same_sample_ticks >= self.stuck_ticks {
+            let moved = libm::fabsf(desired_now.displacement_m - state.desired_at_change_m);
+            // (NaN before the first change: `moved > x` is false, nothing is stuck yet.)
+            if state.same_sample_ticks >= self.stuck_ticks && moved > self.stuck_motion_m {
                 state.fell_back = true;
                 return false;
             }
         } else {
             state.same_sample_ticks = 0;
             state.last_sample_bits = sample_bits;
+            state.desired_at_change_m = desired_now.displacement_m;
         }
         // ȳ at the sample's time t_k − d (Taylor from t_k; d is a few ticks at most).
         let d = self.delay_s;
@@ -638,9 +660,36 @@ mod tests {
                 assert!(out.current_a.abs() <= p.control.current_limit_a);
             }
         }
-        assert_eq!(fell_back_at, Some(stuck));
+        // Stuck once the count has not changed for `stuck` ticks *and* the trajectory has moved
+        // a tenth of its band since (it does within a quarter period here).
+        let at = fell_back_at.expect("the stuck sensor is detected");
+        assert!((stuck..stuck + 30).contains(&at), "detected at tick {at}");
         assert!(st.core.feedback.fell_back);
         assert_eq!(st.core.sensor_fault, Some(SensorFault::Stuck));
+    }
+
+    #[test]
+    fn an_unchanged_sample_is_not_stuck_while_the_trajectory_dwells() {
+        // A slow trajectory can stay within one ADC count at an extreme for many ticks.
+        let law = FeedbackLaw::new(&BAKED_PARAMETERS.control.feedback, 10_000.0, 106.0, 0.0)
+            .unwrap()
+            .with_stuck_motion(3e-6);
+        let mut st = law.init(0.0, -0.1);
+        let mut d = DesiredMotion {
+            displacement_m: 20e-6,
+            velocity_m_per_s: 0.0,
+            acceleration_m_per_s2: 0.0,
+        };
+        for _ in 0..5_000 {
+            assert!(
+                law.observe(&mut st, 7, 20e-6, &d, false),
+                "dwelling is not stuck"
+            );
+        }
+        // The same count while the target moves away by more than 3 µm: stuck.
+        d.displacement_m = 24e-6;
+        assert!(!law.observe(&mut st, 7, 20e-6, &d, false));
+        assert!(st.fell_back);
     }
 
     #[test]

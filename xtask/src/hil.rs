@@ -111,6 +111,11 @@ pub struct HilRun {
     pub plant_params: Option<PathBuf>,
     /// Measurement mode: the programme to stream and where to write the dataset folder.
     pub measure: Option<(Arc<Programme>, PathBuf)>,
+    /// Streamed measurement of only the programme's first ticks (no dataset written).
+    pub measure_ticks: Option<u32>,
+    /// Local measurement (`mode=measure-local`): the firmware plays its compiled-in programme
+    /// and logs the record (`MEAS` lines), which is checked against the link and written here.
+    pub measure_local: Option<PathBuf>,
     /// Firmware ELF to run instead of the default build (e.g. one baked with identified
     /// parameters).
     pub elf: Option<PathBuf>,
@@ -135,6 +140,8 @@ impl HilRun {
             feedback: true,
             plant_params: None,
             measure: None,
+            measure_ticks: None,
+            measure_local: None,
             elf: None,
             out,
         }
@@ -152,6 +159,8 @@ pub struct HilResult {
     pub wall_s: f64,
     /// The summary text.
     pub summary: String,
+    /// The command frames, in tick order.
+    pub frames: Vec<CommandFrame>,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -229,12 +238,15 @@ pub fn run_once(
     let listener = TcpListener::bind("127.0.0.1:0").context("cannot open a local TCP port")?;
     let port = listener.local_addr()?.port();
     let elf = run.elf.as_deref().unwrap_or(elf);
-    let ticks = match &run.measure {
-        Some((p, _)) => p.current_a.len() as u32,
-        None => run.ticks,
+    let ticks = match (&run.measure, &run.measure_local) {
+        (Some((p, _)), _) => run.measure_ticks.unwrap_or(p.current_a.len() as u32),
+        (None, Some(_)) => local_programme_ticks()?,
+        (None, None) => run.ticks,
     };
     let mut semi = format!("enable=on,target=native,arg=firmware-hil,arg=ticks={ticks}");
-    if run.measure.is_some() {
+    if run.measure_local.is_some() {
+        semi.push_str(",arg=mode=measure-local");
+    } else if run.measure.is_some() {
         semi.push_str(",arg=mode=measure");
     }
     if run.inverse == "static" {
@@ -384,8 +396,16 @@ pub fn run_once(
     fw_result?;
 
     let log_lines = decode_defmt(&std::fs::read(elf)?, &output.stdout).unwrap_or_default();
+    let mut batches = 0usize;
     for l in &log_lines {
-        println!("  firmware: {l}");
+        if l.contains("MEAS ") {
+            batches += 1;
+        } else {
+            println!("  firmware: {l}");
+        }
+    }
+    if batches > 0 {
+        println!("  firmware: … {batches} `MEAS` record lines (not shown)");
     }
     let stderr = String::from_utf8_lossy(&output.stderr);
     if !stderr.trim().is_empty() {
@@ -403,10 +423,22 @@ pub fn run_once(
     };
     write_link_csv(&out_abs.join("link.csv"), &rows)?;
     if let Some((programme, dir)) = &run.measure {
-        if exit == 0 {
+        if exit == 0 && run.measure_ticks.is_none() {
             write_dataset(programme, &rows, dir)?;
             println!("  wrote the dataset folder {}", dir.display());
         }
+    }
+    let mut record_line = String::new();
+    if let Some(dir) = &run.measure_local {
+        ensure!(exit == 0, "local measurement: firmware exit {exit}");
+        let record = crate::record::parse(&log_lines).context("the firmware's record")?;
+        let checked = check_record_against_link(&record, &rows)?;
+        crate::record::write_dataset(&record, dir)?;
+        record_line = format!(
+            "  record (defmt MEAS lines, as the NUCLEO streams over RTT): {} experiments, {checked} ticks, each identical to its command frame; dataset folder {}\n",
+            record.experiments.len(),
+            dir.display()
+        );
     }
 
     let commands = rows.iter().filter(|r| r.command.is_some()).count();
@@ -441,7 +473,9 @@ pub fn run_once(
                 run.effects.join("; ")
             }
         )),
-        if run.measure.is_some() {
+        if run.measure_local.is_some() {
+            format!("compiled-in measurement programme of {ticks} ticks")
+        } else if run.measure.is_some() {
             format!("measurement programme of {ticks} ticks")
         } else {
             format!("{} tracking ticks, {} inverse", run.ticks, run.inverse)
@@ -458,7 +492,7 @@ pub fn run_once(
     writeln!(
         s,
         "  control interrupt {} instructions min {:.0} median {:.0} max {:.0}",
-        if run.measure.is_some() {
+        if run.measure.is_some() || run.measure_local.is_some() {
             "(sample read, programme current through the limiter, DAC frame):"
         } else {
             "while tracking (sensor read, trajectory, inverse, limiter, DAC frame):"
@@ -473,6 +507,7 @@ pub fn run_once(
             "  tracking error ({on}): RMS {rms:.3} % of peak-to-peak, max {max:.3} %"
         )?;
     }
+    s.push_str(&record_line);
     writeln!(s, "  wall time {wall_s:.1} s")?;
     print!("{s}");
     std::fs::write(out_abs.join("summary.txt"), &s)?;
@@ -486,6 +521,7 @@ pub fn run_once(
         tracking,
         wall_s,
         summary: s,
+        frames: rows.iter().filter_map(|r| r.command).collect(),
     })
 }
 
@@ -619,86 +655,107 @@ pub struct Programme {
     pub experiments: Vec<(String, String, usize, usize)>,
 }
 
-/// FORC sweep rate of the measurement programme (a full-range triangle at this rate), Hz.
-pub const MEASURE_FORC_HZ: f64 = 2.0;
-/// Sine frequencies of the measurement programme, Hz.
-pub const MEASURE_SINE_HZ: [f64; 6] = [20.0, 50.0, 100.0, 200.0, 300.0, 400.0];
-/// Sine amplitudes, A (every frequency at every amplitude), around [`MEASURE_BIAS_A`].
-pub const MEASURE_SINE_AMPLITUDES_A: [f64; 3] = [0.15, 0.3, 0.45];
-/// DC bias of the sines, A.
-pub const MEASURE_BIAS_A: f64 = 0.55;
-/// Duration of each sine, s.
-pub const MEASURE_SINE_S: f64 = 0.2;
-
 /// The identification programme `maglab identify` needs, built from the *nominal* (baked)
-/// parameters — all a bench user knows before identifying: the quasi-static FORC sweep of
-/// `maglab excite` (`maglab_identify::excite`, 5 % beyond the grid at both ends, clipped to the
-/// current limit by the firmware's limiter) and biased sines, each experiment preceded by the
-/// firmware's start-up conditioning sequence (`magctl::inverse::Conditioning`: negative
-/// saturation, then slowly to the experiment's first current — the start state
-/// `negative-saturation` of `dataset.json`).
+/// parameters — all a bench user knows before identifying — by the core's generator
+/// (`magctl::programme`, the one the firmware plays itself in `mode=measure-local` and on the
+/// NUCLEO measurement image): the FORC sweep (reversals on every grid line, 5 % beyond the grid,
+/// clipped to the current limit by the firmware's limiter) and biased sines, each experiment
+/// preceded by the start-up conditioning sequence (negative saturation, then slowly to its first
+/// current — the start state `negative-saturation` of `dataset.json`).
 pub fn identification_programme() -> Result<Programme> {
-    let p = &BAKED_PARAMETERS;
-    let measure = &magctl::params::BAKED_MEASURE;
-    let rate_hz = p.control.sample_rate_hz as f64;
-    let forc = maglab_identify::excite::forc_excitation(&maglab_identify::excite::ExciteOptions {
-        h_min_a_per_m: measure.h_min_a_per_m() as f64,
-        h_max_a_per_m: measure.h_max_a_per_m() as f64,
-        coil_factor_per_m: p.actuator.coil_factor_per_m as f64,
-        sweep_rate_hz: MEASURE_FORC_HZ,
-        sample_rate_hz: rate_hz,
-        overdrive: 0.05,
-    })
-    .map_err(|e| anyhow::anyhow!("FORC programme: {e}"))?;
-    let mut experiments: Vec<(String, String, Vec<f64>)> = vec![(
-        "00_forc".into(),
-        format!("FORC reversal sweep, {MEASURE_FORC_HZ} Hz full-range triangle rate"),
-        forc.current_a,
-    )];
-    let n = (MEASURE_SINE_S * rate_hz).round() as usize;
-    for &f in &MEASURE_SINE_HZ {
-        for &a in &MEASURE_SINE_AMPLITUDES_A {
-            let k = experiments.len();
-            experiments.push((
-                format!("{k:02}_sine_{f:07.1}hz_amp{a:.3}a_bias{MEASURE_BIAS_A:.3}a"),
-                format!("sine {f} Hz, {MEASURE_BIAS_A} ± {a} A"),
-                (0..n)
-                    .map(|i| {
-                        MEASURE_BIAS_A
-                            + a * (2.0 * std::f64::consts::PI * f * i as f64 / rate_hz).sin()
-                    })
-                    .collect(),
-            ));
-        }
-    }
-    let limiter = magctl::inverse::OutputLimiter::new(&p.control)
-        .map_err(|e| anyhow::anyhow!("control settings: {e:?}"))?;
-    let conditioning = magctl::inverse::Conditioning::new(
-        &limiter,
-        p.actuator.coil_factor_per_m,
-        measure.h_min_a_per_m(),
-        p.control.sample_rate_hz,
-    )
-    .map_err(|e| anyhow::anyhow!("conditioning: {e:?}"))?;
+    let programme = core_programme()?;
     let mut prog = Programme {
         current_a: Vec::new(),
         experiments: Vec::new(),
     };
-    let mut last = 0.0f32;
-    for (name, description, currents) in experiments {
-        // The limiter clips the FORC's overshoot to ±I_max: start from what the coil will get.
-        let first = (currents[0] as f32).clamp(-limiter.limit_a(), limiter.limit_a());
-        let mut seq = conditioning.start(last, first);
-        while !seq.done() {
-            prog.current_a.push(conditioning.step(&mut seq));
+    let mut state = programme.start(0.0);
+    while let Some(t) = programme.step(&mut state) {
+        if t.sample == Some(0) {
+            let e = programme
+                .experiment(t.experiment)
+                .context("the programme's experiment table")?;
+            let (kind, a, b, c) = e.kind.fields();
+            let described = crate::record::RecordedExperiment {
+                kind: kind.to_string(),
+                values: [a as f64, b as f64, c as f64],
+                ticks: e.ticks as usize,
+                samples: Vec::new(),
+            };
+            prog.experiments.push((
+                described.name(t.experiment),
+                described.description(),
+                prog.current_a.len(),
+                e.ticks as usize,
+            ));
         }
-        let start = prog.current_a.len();
-        prog.current_a.extend(currents.iter().map(|&i| i as f32));
-        last = *prog.current_a.last().unwrap_or(&0.0);
-        prog.experiments
-            .push((name, description, start, currents.len()));
+        prog.current_a.push(t.current_a);
     }
     Ok(prog)
+}
+
+/// The core's identification programme for the baked parameters.
+fn core_programme() -> Result<magctl::programme::IdentificationProgramme> {
+    let p = &BAKED_PARAMETERS;
+    let measure = &magctl::params::BAKED_MEASURE;
+    let limiter = magctl::inverse::OutputLimiter::new(&p.control)
+        .map_err(|e| anyhow::anyhow!("control settings: {e:?}"))?;
+    magctl::programme::IdentificationProgramme::new(
+        &limiter,
+        p.actuator.coil_factor_per_m,
+        measure.h_min_a_per_m(),
+        measure.h_max_a_per_m(),
+        p.control.sample_rate_hz,
+    )
+    .map_err(|e| anyhow::anyhow!("identification programme: {e:?}"))
+}
+
+/// Ticks of a local measurement run: the programme, then the ramp to 0 A (as firmware-hil
+/// counts them).
+fn local_programme_ticks() -> Result<u32> {
+    let limiter = magctl::inverse::OutputLimiter::new(&BAKED_PARAMETERS.control)
+        .map_err(|e| anyhow::anyhow!("control settings: {e:?}"))?;
+    let ramp = (limiter.limit_a() / limiter.max_step_a()).ceil() as u32 + 2;
+    Ok(core_programme()?.total_ticks(0.0) + ramp)
+}
+
+/// Checks every tick of the firmware's record against the command frame of the same tick
+/// (bit for bit: the current applied, the reading, the flags); returns the ticks checked.
+fn check_record_against_link(record: &crate::record::Record, rows: &[TickRow]) -> Result<usize> {
+    let programme = core_programme()?;
+    let mut state = programme.start(0.0);
+    let mut tick = 0usize;
+    let mut checked = 0usize;
+    while let Some(t) = programme.step(&mut state) {
+        if let Some(k) = t.sample {
+            let s = record
+                .experiments
+                .get(t.experiment)
+                .and_then(|e| e.samples.get(k as usize))
+                .copied()
+                .flatten()
+                .with_context(|| format!("record: experiment {} tick {k} missing", t.experiment))?;
+            let c = rows
+                .get(tick)
+                .and_then(|r| r.command)
+                .with_context(|| format!("no command frame for tick {tick}"))?;
+            ensure!(
+                s.current_a.to_bits() == c.value.to_bits()
+                    && s.reading_m.to_bits() == c.desired_m.to_bits()
+                    && s.flags == c.flags,
+                "tick {tick} (experiment {} tick {k}): record ({} A, {} m, flags {}) differs from the link ({} A, {} m, flags {})",
+                t.experiment,
+                s.current_a,
+                s.reading_m,
+                s.flags,
+                c.value,
+                c.desired_m,
+                c.flags
+            );
+            checked += 1;
+        }
+        tick += 1;
+    }
+    Ok(checked)
 }
 
 /// Writes the dataset folder of a measurement run: one `t_s,current_a,displacement_m` file per
@@ -746,6 +803,9 @@ fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path) -> Result<
     Ok(())
 }
 
+/// Ticks of the streamed measurement compared with the compiled-in one in [`end_to_end`].
+const STREAMED_CHECK_TICKS: u32 = 3_000;
+
 /// Measure → identify → bake → track on a plant whose parameters are not the baked ones
 /// (`host-tests/hil/other_actuator.json`: R_eddy +25 %, ξ −20 %, f0 +15 %, another Preisach
 /// measure). Returns the summary lines; fails unless tracking with the identified parameters is
@@ -755,11 +815,43 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
     let data = base.join("data");
     let _ = std::fs::remove_dir_all(&data);
     let programme = Arc::new(identification_programme()?);
+    // The firmware plays its compiled-in programme and logs the record as the NUCLEO
+    // measurement image does (defmt `MEAS` lines); `crate::record` writes the dataset from it.
     let mut m = HilRun::new(base.join("measure"));
     m.plant_params = Some(plant.clone());
-    m.measure = Some((programme.clone(), data.clone()));
+    m.measure_local = Some(data.clone());
     let r = run_once(ctx, elf, Some(exe), &m)?;
     let mut s = r.summary.clone();
+    // The streamed programme (R frames, the protocol's measurement mode) drives the same
+    // firmware identically: its first ticks, frame for frame.
+    let mut streamed = HilRun::new(base.join("measure_streamed"));
+    streamed.plant_params = Some(plant.clone());
+    streamed.measure = Some((programme.clone(), base.join("unused")));
+    streamed.measure_ticks = Some(STREAMED_CHECK_TICKS);
+    let r2 = run_once(ctx, elf, Some(exe), &streamed)?;
+    let n = STREAMED_CHECK_TICKS as usize;
+    ensure!(
+        r2.frames.len() >= n && r.frames.len() >= n,
+        "streamed check: {} / {} frames",
+        r2.frames.len(),
+        r.frames.len()
+    );
+    for (k, (a, b)) in r.frames.iter().zip(&r2.frames).take(n).enumerate() {
+        ensure!(
+            a.value.to_bits() == b.value.to_bits()
+                && a.desired_m.to_bits() == b.desired_m.to_bits()
+                && a.flags == b.flags,
+            "tick {k}: the compiled-in programme commands {} A (reading {} m), the streamed one {} A ({} m)",
+            a.value,
+            a.desired_m,
+            b.value,
+            b.desired_m
+        );
+    }
+    writeln!(
+        s,
+        "  streamed programme (R frames): its first {n} ticks command the same currents and read the same samples, bit for bit"
+    )?;
     let identified = base.join("identified.json");
     let started = Instant::now();
     let mut id = Command::new(exe);
@@ -1066,6 +1158,7 @@ pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
                     PathBuf::from(value(a)?),
                 ))
             }
+            "--measure-local" => run.measure_local = Some(PathBuf::from(value(a)?)),
             "--end-to-end" => {
                 let elf = firmware(ctx)?;
                 let exe = maglab(ctx)?;

@@ -9,6 +9,7 @@
 //! * `demo` ([`demo`]): setup, then the host demo (`maglab loops`), the QEMU firmware run and the
 //!   tracking figures (`maglab track`) into `out/`;
 //! * `qemu` ([`qemu`]) and `nucleo` ([`nucleo`]): the firmware checks (also steps of `test`);
+//! * `record` ([`record`]): the firmware's own measurement record → the dataset folder;
 //! * `fuzz` ([`fuzz`]): the long cargo-fuzz runs (nightly); `test` replays their corpus.
 //!
 //! # Adding a command
@@ -24,6 +25,7 @@ mod fuzz;
 mod hil;
 mod nucleo;
 mod qemu;
+mod record;
 mod robustness;
 mod setup;
 mod test;
@@ -74,6 +76,11 @@ const COMMANDS: &[Command] = &[
         name: "nucleo",
         about: "build the NUCLEO-F446RE firmware, report its sizes, prove it panic-free at link time",
         run: nucleo::run,
+    },
+    Command {
+        name: "record",
+        about: "the firmware's own measurement record (MEAS lines of its defmt log) -> dataset folder: -o DIR (--log FILE | -- probe-rs run --chip STM32F446RETx out/nucleo/firmware-nucleo-measure.elf)",
+        run: record::run,
     },
     Command {
         name: "fuzz",

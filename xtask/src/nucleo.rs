@@ -7,6 +7,9 @@
 //! 2. **No-panic proof**: the same with `panic-never` must link (no panic path anywhere in the
 //!    image, the TIM2 control interrupt included), and with `panic-never-canary` (a bounds check
 //!    in the interrupt) must fail to link naming the undefined panic symbol.
+//! 3. **Measurement image** (`measurement-mode`: the compiled-in identification programme,
+//!    recorded over RTT for `cargo xtask record`): built, sized, copied to
+//!    `out/nucleo/firmware-nucleo-measure.elf`, and proven panic-free the same way.
 //!
 //! Writes `out/nucleo/summary.txt`.
 
@@ -60,6 +63,30 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         "the firmware-nucleo canary build (a panic in the TIM2 interrupt) linked: the no-panic proof would not catch a panic"
     );
     say!("no-panic proof (firmware-nucleo): panic-never build links; the canary (bounds check in the TIM2 interrupt) fails to link as it must");
+
+    // The measurement image.
+    let measure_features = format!("{BOARD},measurement-mode");
+    run_checked(build_bin(ctx, BIN, &measure_features))?;
+    let elf =
+        std::fs::read(&elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
+    let (flash, ram) = section_sizes(&elf)?;
+    let keep = out_dir.join("firmware-nucleo-measure.elf");
+    std::fs::write(&keep, &elf).with_context(|| format!("writing {}", keep.display()))?;
+    say!("firmware-nucleo measurement image sizes: flash {flash} B, static RAM {ram} B (16 KiB RTT ring, 512-tick record queue); out/nucleo/firmware-nucleo-measure.elf (cargo xtask record -o DIR -- probe-rs run --chip STM32F446RETx out/nucleo/firmware-nucleo-measure.elf)");
+    let cmd = build_bin(ctx, BIN, &format!("{measure_features},panic-never"));
+    println!("$ {}", display(&cmd));
+    let proof = run_capture(cmd)?;
+    ensure!(
+        proof.0,
+        "no-panic proof FAILED for the firmware-nucleo measurement image:\n{}",
+        proof
+            .1
+            .lines()
+            .filter(|l| l.contains("undefined symbol") || l.starts_with("error"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    say!("no-panic proof (firmware-nucleo measurement image): panic-never build links");
     std::fs::write(out_dir.join("summary.txt"), &summary)?;
     Ok(summary)
 }

@@ -102,6 +102,23 @@ pub fn steps() -> Vec<Step> {
             ],
         ),
         Step::cargo(
+            "clippy_nucleo_measure",
+            "no clippy warnings in the NUCLEO measurement image (measurement-mode)",
+            &[
+                "clippy",
+                "-p",
+                "magctl",
+                "--target",
+                FIRMWARE_TARGET,
+                "--features",
+                "board-nucleo-f446re,measurement-mode",
+                "--bins",
+                "--",
+                "-D",
+                "warnings",
+            ],
+        ),
+        Step::cargo(
             "test",
             "unit, integration and property tests of every crate",
             &["test", "--workspace"],

@@ -15,8 +15,14 @@
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
-/// Size of the up-channel ring buffer, bytes.
+/// Size of the up-channel ring buffer, bytes: 1 KiB for the status lines; 16 KiB in the
+/// measurement image (feature `measurement-mode`: 90 kB/s of record at 10 kHz, so ~180 ms of
+/// slack for the probe's polling).
+#[cfg(not(feature = "measurement-mode"))]
 pub const BUFFER_BYTES: usize = 1024;
+/// See above.
+#[cfg(feature = "measurement-mode")]
+pub const BUFFER_BYTES: usize = 16 * 1024;
 
 /// Bytes dropped because the ring was full or a log was nested.
 pub static DROPPED_BYTES: AtomicU32 = AtomicU32::new(0);
@@ -85,6 +91,15 @@ static STATE: Shared = Shared(UnsafeCell::new(State {
 }));
 /// Nesting depth of `acquire` (1 = the frame being written; > 1 = a nested, dropped log).
 static DEPTH: AtomicUsize = AtomicUsize::new(0);
+
+/// Free bytes in the ring now (the probe may free more at any time): thread mode logs a record
+/// batch only when it fits, so that no frame is ever truncated.
+pub fn free_bytes() -> usize {
+    let ch = &_SEGGER_RTT.up;
+    let read = ch.read.load(Ordering::Acquire) as usize % BUFFER_BYTES;
+    let write = ch.write.load(Ordering::Relaxed) as usize % BUFFER_BYTES;
+    (read + BUFFER_BYTES - write - 1) % BUFFER_BYTES
+}
 
 /// Appends bytes to the ring, dropping what does not fit.
 fn push(bytes: &[u8]) {
