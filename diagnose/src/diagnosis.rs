@@ -48,12 +48,14 @@
 //!    one removes at least a third of the gap's energy ([`PROMISING`]: two strong effects) —
 //!    every pair among the [`PAIR_CANDIDATES`] best single candidates and the candidates that fit
 //!    one frequency band best (up to two more: a slow and a fast effect each show in their own
-//!    bands) is refitted. The best pair
+//!    bands) is refitted, and so is the best single candidate with every other effect of the
+//!    library (forward selection: an effect the first one masks fits badly alone). The best pair
 //!    is named (the second effect
 //!    as an `additional_effect`) when it passes the significance test against the first effect
-//!    alone, removes three quarters of the refitted nominal gap's energy, and both its effects
-//!    are needed: with either switched off and the rest refitted, the gap is at least twice as
-//!    large.
+//!    alone, removes three quarters of the refitted nominal gap's energy, the second effect
+//!    accounts for at least [`SECOND_EFFECT_MIN_SHARE`] of that energy beyond the first, and
+//!    both its effects are needed: with either switched off and the rest refitted, the gap is at
+//!    least twice as large.
 //!
 //! **Significance** (steps 7 and 8) is a knock-out test as well: the candidate's held-out gap
 //! must also be at most half of what its own fit gives with its effect switched off (so the
@@ -262,6 +264,13 @@ of the motion), or below max(noise, 0.2 % of the motion) and no candidate explai
 /// The second stage pairs the best this many single candidates (six pairs; up to two band-best
 /// candidates join them).
 pub const PAIR_CANDIDATES: usize = 4;
+
+/// A second effect is named only when it accounts for at least this share of the refitted
+/// nominal gap's *energy* beyond what the first effect removes: the library's forms are simpler
+/// than a rig's (a two-mode load, a ladder of eddy paths), and a smaller improvement is
+/// indistinguishable from the first effect's form being too simple — naming a second effect for
+/// it would be a false pair.
+pub const SECOND_EFFECT_MIN_SHARE: f64 = 0.05;
 
 /// A single candidate that leaves at most this fraction of the refitted nominal gap (removes at
 /// least 36 % of its energy) is worth a second effect on top when it is not significant alone.
@@ -653,6 +662,16 @@ pub fn diagnose(
                 combos.push((i, j));
             }
         }
+        // Forward selection: the best single candidate with every other effect of the library,
+        // whatever that effect's own single fit gave — an effect whose signature the first one
+        // mostly masks fits badly alone (its single fit stretches to cover the first effect)
+        // and would never rank among the best singles.
+        for j in 0..ranked.len() {
+            let pair = (best_single.min(j), best_single.max(j));
+            if j != best_single && !combos.contains(&pair) && !combos.contains(&(pair.1, pair.0)) {
+                combos.push((best_single, j));
+            }
+        }
         let base_scored = ranked[best_single].2.clone();
         let base_gap = ranked[best_single].0.systematic_after_m;
         let mut pairs: Vec<(CandidateResult, PlanFit, Scored)> = combos
@@ -684,6 +703,21 @@ pub fn diagnose(
                         .chain(own(j))
                         .collect(),
                 ];
+                // And from the first's fit plus the second's first library start (its own single
+                // fit may have stretched to mimic the first effect).
+                let mut starts = starts;
+                if let Some(default) = candidates::effect_starts(second, &nominal).first() {
+                    starts.push(
+                        ranked[i]
+                            .1
+                            .fitted
+                            .values
+                            .iter()
+                            .copied()
+                            .chain(default.iter().copied())
+                            .collect(),
+                    );
+                }
                 let f = fitter.fit_from(&cand, &starts, ranked[i].1.plan);
                 let sc = scorer.predict(&f);
                 Some((scorer.result(&f, &sc, &base_scored), f, sc))
@@ -695,8 +729,13 @@ pub fn diagnose(
         });
         if let Some((r, f, sc)) = pairs.first() {
             let singles: Vec<&PlanFit> = ranked.iter().map(|r| &r.1).collect();
+            // The second effect's own share of the gap's energy: what the pair removes beyond
+            // the best single candidate, as a fraction of the refitted nominal gap's energy.
+            let second_share =
+                (base_gap * base_gap - r.systematic_after_m * r.systematic_after_m) / (gap0 * gap0);
             let accepted = r.pinned.is_empty()
                 && r.systematic_after_m <= 0.5 * base_gap.min(gap0)
+                && second_share >= SECOND_EFFECT_MIN_SHARE
                 && r.worse_experiments as f64 <= 0.25 * r.held_out_experiments as f64
                 && scorer.necessary(f, 0, &singles, r.systematic_after_m);
             if accepted {

@@ -90,13 +90,21 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
                 .expect("the case is drawn");
                 let o = run_case(&params, case);
                 if verbose {
+                    // The gap left by the best single candidate and by the best pair, % of the
+                    // refitted nominal model's systematic gap (the margins of the verdict).
+                    let d = &o.diagnosis;
+                    let gap0 = d.refitted_nominal.systematic_before_m.max(1e-300);
+                    let single = d.ranking.first().map_or(f64::NAN, |c| c.systematic_after_m);
+                    let pair = d.second_stage.first().map_or(f64::NAN, |c| c.systematic_after_m);
                     println!(
-                        "{} {:2} {} -> {} ({:.1} s){}",
+                        "{} {:2} {} -> {} ({:.1} s; best single leaves {:.0} %, best pair {:.0} %){}",
                         if o.correct { "ok  " } else { "MISS" },
                         i,
                         o.case.describe(),
                         o.named.join("+"),
                         o.seconds,
+                        100.0 * single / gap0,
+                        100.0 * pair / gap0,
                         if o.correct {
                             String::new()
                         } else {
