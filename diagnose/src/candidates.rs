@@ -146,6 +146,10 @@ impl Candidate {
 /// How far the refit may move `R_eddy`, `ξ`, `f0` from the file's values: factors (module docs).
 pub const REFIT_RANGE: [f64; 3] = [1.25, 1.25, 1.06];
 
+/// How many parameters every candidate shares, first in its value vector:
+/// [`common_parameters`] (`R_eddy`, `ξ`, `f0`, skew); an effect's own parameters follow.
+pub const COMMON_PARAMETER_COUNT: usize = 4;
+
 /// The refitted nominal constants and the skew: `R_eddy`, `ξ`, `f0` (within `range` of the
 /// nominal values, factors), `skew`.
 pub fn common_parameters(nominal: &Nominal, range: &[f64; 3]) -> Vec<ParamSpec> {
@@ -462,7 +466,7 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
     let mut e = Electro::nominal(values[0]);
     let mut m = Mech::nominal(values[1], values[2]);
     m.skew_samples = values[3];
-    let mut k = 4;
+    let mut k = COMMON_PARAMETER_COUNT;
     for &effect in &candidate.effects {
         let v = &values[k..];
         match effect {

@@ -64,7 +64,7 @@
 //! explanation that needs an implausible effect is none.
 
 use crate::breakdown::{self, Where};
-use crate::candidates::{self, Candidate};
+use crate::candidates::{self, Candidate, COMMON_PARAMETER_COUNT};
 use crate::effects::EffectName;
 use crate::fit::{fit, ExperimentData, FitSettings, Fitted, ModelSetup};
 use crate::model::{run_mech, Electro, Interpolation, Mech, ModelStart, Nominal};
@@ -571,7 +571,10 @@ pub fn diagnose(
     progress(1);
     // Each effect starts from the refitted constants and from the file's (the refitted ones may
     // have stretched to mimic the effect).
-    let commons = [refit.fitted.values[..4].to_vec(), common_start.clone()];
+    let commons = [
+        refit.fitted.values[..COMMON_PARAMETER_COUNT].to_vec(),
+        common_start.clone(),
+    ];
     let fitted: Vec<PlanFit> = EffectName::LIBRARY
         .par_iter()
         .map(|&effect| {
@@ -667,8 +670,10 @@ pub fn diagnose(
         // mostly masks fits badly alone (its single fit stretches to cover the first effect)
         // and would never rank among the best singles.
         for j in 0..ranked.len() {
-            let pair = (best_single.min(j), best_single.max(j));
-            if j != best_single && !combos.contains(&pair) && !combos.contains(&(pair.1, pair.0)) {
+            let listed = combos
+                .iter()
+                .any(|&p| p == (best_single, j) || p == (j, best_single));
+            if j != best_single && !listed {
                 combos.push((best_single, j));
             }
         }
@@ -684,39 +689,25 @@ pub fn diagnose(
                 let cand = Candidate {
                     effects: vec![first, second],
                 };
-                // Start from the first's fit plus the second's own values, and from the
-                // second's fit plus the first's.
-                let own = |r: usize| ranked[r].1.fitted.values[4..].to_vec();
-                let starts = vec![
-                    ranked[i]
-                        .1
-                        .fitted
-                        .values
+                // Starts: the first's fit plus the second's own fitted values; the second's
+                // common values plus both effects' own; the first's fit plus the second's first
+                // library start (its own single fit may have stretched to mimic the first effect).
+                let fitted = |r: usize| ranked[r].1.fitted.values.as_slice();
+                let own = |r: usize| &fitted(r)[COMMON_PARAMETER_COUNT..];
+                let first_fit_with = |second_values: &[f64]| -> Vec<f64> {
+                    fitted(i).iter().chain(second_values).copied().collect()
+                };
+                let mut starts = vec![
+                    first_fit_with(own(j)),
+                    fitted(j)[..COMMON_PARAMETER_COUNT]
                         .iter()
-                        .copied()
-                        .chain(own(j))
-                        .collect::<Vec<f64>>(),
-                    ranked[j].1.fitted.values[..4]
-                        .iter()
-                        .copied()
                         .chain(own(i))
                         .chain(own(j))
+                        .copied()
                         .collect(),
                 ];
-                // And from the first's fit plus the second's first library start (its own single
-                // fit may have stretched to mimic the first effect).
-                let mut starts = starts;
-                if let Some(default) = candidates::effect_starts(second, &nominal).first() {
-                    starts.push(
-                        ranked[i]
-                            .1
-                            .fitted
-                            .values
-                            .iter()
-                            .copied()
-                            .chain(default.iter().copied())
-                            .collect(),
-                    );
+                if let Some(library_start) = candidates::effect_starts(second, &nominal).first() {
+                    starts.push(first_fit_with(library_start));
                 }
                 let f = fitter.fit_from(&cand, &starts, ranked[i].1.plan);
                 let sc = scorer.predict(&f);

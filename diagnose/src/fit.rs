@@ -8,7 +8,7 @@
 //! its settling time (the whole record is still simulated up to there); scoring uses the whole
 //! record.
 
-use crate::candidates::{self, Candidate, ParamSpec, Stage};
+use crate::candidates::{self, Candidate, ParamSpec, Stage, COMMON_PARAMETER_COUNT};
 use crate::model::{
     chained_temperature, run_electro, run_mech, Electro, ElectroRun, Interpolation, Mech,
     ModelStart, Nominal,
@@ -194,12 +194,12 @@ impl Fitted {
     /// own parameters as they are for a single effect and as `effect.name` when the candidate
     /// has several effects (two effects may share a parameter name, e.g. `natural_hz`).
     pub fn report_names(&self) -> Vec<String> {
-        let mut names: Vec<String> = self.specs[..4.min(self.specs.len())]
+        let mut names: Vec<String> = self.specs[..COMMON_PARAMETER_COUNT.min(self.specs.len())]
             .iter()
             .map(|s| s.name.to_string())
             .collect();
         let several = self.candidate.effects.len() > 1;
-        let mut k = 4;
+        let mut k = COMMON_PARAMETER_COUNT;
         for &e in &self.candidate.effects {
             let n = candidates::effect_parameter_count(e);
             for s in self.specs.iter().skip(k).take(n) {
@@ -220,7 +220,7 @@ impl Fitted {
         self.report_names()
             .into_iter()
             .zip(self.specs.iter().zip(&self.values))
-            .skip(4)
+            .skip(COMMON_PARAMETER_COUNT)
             .filter(|(_, (s, &v))| s.pinned(s.coordinate(v)))
             .map(|(name, _)| name)
             .collect()
@@ -229,9 +229,9 @@ impl Fitted {
     /// The same fit with effect `drop` switched off (every other value unchanged).
     pub fn without_effect(&self, drop: usize) -> Fitted {
         let mut effects = Vec::new();
-        let mut specs = self.specs[..4].to_vec();
-        let mut values = self.values[..4].to_vec();
-        let mut k = 4;
+        let mut specs = self.specs[..COMMON_PARAMETER_COUNT].to_vec();
+        let mut values = self.values[..COMMON_PARAMETER_COUNT].to_vec();
+        let mut k = COMMON_PARAMETER_COUNT;
         for (i, &e) in self.candidate.effects.iter().enumerate() {
             let n = candidates::effect_parameter_count(e);
             if i != drop {
@@ -256,11 +256,12 @@ impl Fitted {
         let candidate = Candidate {
             effects: self.candidate.effects[..keep.min(self.candidate.effects.len())].to_vec(),
         };
-        let n = 4 + candidate
-            .effects
-            .iter()
-            .map(|&e| candidates::effect_parameter_count(e))
-            .sum::<usize>();
+        let n = COMMON_PARAMETER_COUNT
+            + candidate
+                .effects
+                .iter()
+                .map(|&e| candidates::effect_parameter_count(e))
+                .sum::<usize>();
         Fitted {
             specs: self.specs[..n].to_vec(),
             values: self.values[..n].to_vec(),
