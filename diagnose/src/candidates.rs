@@ -18,7 +18,7 @@
 //! | `amplifier_bandwidth` | `natural_hz`, `damping_ratio` | second-order low-pass on the current |
 //! | `sensor_dynamics` | `natural_hz`, `damping_ratio`, `delay_s` | second-order low-pass and a delay on the reading |
 //! | `reversible_magnetization` | `susceptibility`, `saturation_field_a_per_m`, `shape` | `χ_r H / (1 + |H/H_s|^p)^(1/p)` |
-//! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `1 − g φ`, strain `e φ` |
+//! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `1 − g φ`, strain `e φ`; `τ` at least two periods of the slowest dynamic excitation ([`thermal_time_constant_min_s`]) |
 //! | `delta_e_effect` | `stiffness_m2`, `stiffness_m4`, `stiffness_m6`, `stiffness_stress` | `ω² = ω0² (1 + d₁ m² + d₂ m⁴ + d₃ m⁶ + d_σ ε)`, `m = M/M_s`, `ε = (y − u)/stroke` the elastic strain (stress) |
 //! | `mechanical_load` | `mass_ratio`, `coupling_hz`, `damping_ratio` | one load mode |
 //!
@@ -195,6 +195,12 @@ pub fn common_parameters(nominal: &Nominal, range: &[f64; 3]) -> Vec<ParamSpec> 
     ]
 }
 
+/// The thermal candidate's shortest time constant: two periods of the slowest dynamic
+/// excitation (0.5 s until data are seen), s.
+pub fn thermal_time_constant_min_s(nominal: &Nominal) -> f64 {
+    2.0 * nominal.slowest_period_s
+}
+
 /// The effect's own parameters.
 pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
     let f0 = nominal.resonance_hz;
@@ -300,11 +306,13 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
             },
         ],
         EffectName::ThermalDrift => vec![
-            // A coil's thermal time constant is seconds to minutes; below 0.5 s the candidate
-            // would follow the excitation itself and become a static output nonlinearity.
+            // Below two periods of the slowest excitation the candidate would follow the
+            // excitation itself (the I² ripple passes with less than 12x attenuation) and become a
+            // static output nonlinearity: that is the range's physical limit, read from the data
+            // (a small coil's time constant is well under a second, a large one's minutes).
             ParamSpec {
                 name: "time_constant_s",
-                lo: 0.5,
+                lo: thermal_time_constant_min_s(nominal),
                 hi: 1000.0,
                 log: true,
                 stage: B,
@@ -439,7 +447,8 @@ pub fn effect_starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
             }
         }
         EffectName::ThermalDrift => {
-            for tau in [1.0, 5.0, 30.0] {
+            let tau_min = thermal_time_constant_min_s(nominal);
+            for tau in [2.0 * tau_min, 5.0, 30.0] {
                 for g in [-0.05, 0.05] {
                     out.push(vec![tau, 0.3, g, 0.0]);
                 }
@@ -534,6 +543,25 @@ mod tests {
             for s in effect_starts(e, &n) {
                 assert_eq!(s.len(), effect_parameter_count(e));
             }
+        }
+    }
+
+    #[test]
+    fn thermal_time_constant_floor_follows_the_slowest_excitation() {
+        let mut n = Nominal::from_params(&actuator_params::paper_defaults());
+        let floor = |n: &Nominal| {
+            effect_parameters(EffectName::ThermalDrift, n)
+                .iter()
+                .find(|p| p.name == "time_constant_s")
+                .map(|p| (p.lo, p.edge))
+        };
+        // Before data are seen: 0.5 s; with a 20 Hz slowest sine, two of its periods.
+        assert_eq!(floor(&n), Some((0.5, Edge::Low)));
+        n.slowest_period_s = 1.0 / 20.0;
+        assert_eq!(floor(&n), Some((0.1, Edge::Low)));
+        // Every start lies inside the range.
+        for s in effect_starts(EffectName::ThermalDrift, &n) {
+            assert!(s[0] >= 0.1 && s[0] <= 1000.0);
         }
     }
 }

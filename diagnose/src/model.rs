@@ -72,6 +72,9 @@ pub struct Nominal {
     /// The largest field the data reach, `c0 max |I|`, A/m (the grid's top until data are
     /// seen): some candidate ranges scale with it.
     pub operating_field_a_per_m: f64,
+    /// The longest excitation period among the dynamic experiments, s (0.25 s until data are
+    /// seen): a drift must be slow against it to be told from a static nonlinearity.
+    pub slowest_period_s: f64,
 }
 
 impl Nominal {
@@ -93,6 +96,7 @@ impl Nominal {
                 .h_max_a_per_m
                 .abs()
                 .max(p.preisach.h_min_a_per_m.abs()),
+            slowest_period_s: 0.25,
         }
     }
 }
