@@ -97,6 +97,31 @@ impl Default for DiagnoseOptions {
     }
 }
 
+/// The parameter file's nominal constants with the fields read from the data filled in: the
+/// operating field `c0 max |I|` and the slowest dynamic (not quasi-static) excitation's period.
+/// The diagnosis and `maglab identify`'s dynamic fit both start here.
+pub(crate) fn nominal_for_data(
+    params: &actuator_params::ActuatorParams,
+    measurements: &[Measurement],
+    infos: &[ExperimentInfo],
+) -> Nominal {
+    let mut nominal = Nominal::from_params(params);
+    nominal.operating_field_a_per_m = nominal.c0_per_m
+        * measurements
+            .iter()
+            .flat_map(|m| m.current_a.iter())
+            .fold(0.0f64, |a, &i| a.max(i.abs()));
+    if let Some(slowest_hz) = infos
+        .iter()
+        .filter(|i| !i.quasi_static)
+        .map(|i| i.fundamental_hz)
+        .min_by(f64::total_cmp)
+    {
+        nominal.slowest_period_s = 1.0 / slowest_hz;
+    }
+    nominal
+}
+
 /// Excitation properties read from the current of one experiment.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ExperimentInfo {
@@ -385,22 +410,8 @@ pub fn diagnose(
         core.preisach.h_min_a_per_m,
         core.preisach.h_max_a_per_m,
     );
-    let mut nominal = Nominal::from_params(params);
-    nominal.operating_field_a_per_m = nominal.c0_per_m
-        * measurements
-            .iter()
-            .flat_map(|m| m.current_a.iter())
-            .fold(0.0f64, |a, &i| a.max(i.abs()));
     let mut infos = describe(measurements, rate_hz);
-    if let Some(slowest_hz) = infos
-        .iter()
-        .filter(|i| !i.quasi_static)
-        .map(|i| i.fundamental_hz)
-        .min_by(f64::total_cmp)
-    {
-        nominal.slowest_period_s = 1.0 / slowest_hz;
-    }
-    let nominal = nominal;
+    let nominal = nominal_for_data(params, measurements, &infos);
     let file_name = |m: &Measurement| {
         m.path
             .file_name()

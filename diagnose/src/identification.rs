@@ -12,11 +12,11 @@
 
 use crate::candidates::Candidate;
 use crate::diagnosis::{
-    describe, estimate_nuisances, experiment_data, offset_of, pooled_rms, systematic,
-    NuisanceEstimate, PlanFitter, QUASI_STATIC_BELOW_HZ,
+    describe, estimate_nuisances, experiment_data, nominal_for_data, offset_of, pooled_rms,
+    systematic, NuisanceEstimate, PlanFitter, QUASI_STATIC_BELOW_HZ,
 };
 use crate::fit::{FitSettings, ModelSetup};
-use crate::model::{Electro, Interpolation, Mech, Nominal};
+use crate::model::{Electro, Interpolation, Mech};
 use crate::signal;
 use magctl::preisach::PreisachMeasure;
 use maglab_identify::data::Measurement;
@@ -140,18 +140,13 @@ pub fn identify_dynamics(
         core.preisach.h_min_a_per_m,
         core.preisach.h_max_a_per_m,
     );
-    let mut nominal = Nominal::from_params(params);
+    let infos = describe(measurements, rate_hz);
+    let nominal = nominal_for_data(params, measurements, &infos);
     let base = [
         nominal.eddy_resistance_ohm,
         nominal.damping_ratio,
         nominal.resonance_hz,
     ];
-    nominal.operating_field_a_per_m = nominal.c0_per_m
-        * measurements
-            .iter()
-            .flat_map(|m| m.current_a.iter())
-            .fold(0.0f64, |a, &i| a.max(i.abs()));
-    let infos = describe(measurements, rate_hz);
     let dynamic: Vec<usize> = (0..measurements.len())
         .filter(|&k| infos[k].fundamental_hz >= QUASI_STATIC_BELOW_HZ)
         .collect();
