@@ -16,6 +16,8 @@
 //! without asserting.
 mod blind;
 
+use std::io::Write;
+
 #[test]
 fn blind_suite_names_the_right_effect() {
     let seed: u64 = std::env::var("BLIND_SEED").map_or(1, |s| s.parse().expect("BLIND_SEED"));
@@ -23,10 +25,13 @@ fn blind_suite_names_the_right_effect() {
     let started = std::time::Instant::now();
     let outcomes = blind::run_suite(seed, count, true);
     let matrix = blind::confusion_matrix(&outcomes);
-    println!("\nblind suite, seed {seed}:\n{matrix}");
+    // Written to the process's stderr, past libtest's capture (which takes only the print
+    // macros), so that `cargo xtask test`'s log shows the matrix on a pass too.
+    let _ = writeln!(std::io::stderr(), "\nblind suite, seed {seed}:\n{matrix}");
     let mut seconds: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
     seconds.sort_by(f64::total_cmp);
-    println!(
+    let _ = writeln!(
+        std::io::stderr(),
         "diagnosis time per case: median {:.1} s, max {:.1} s; suite {:.0} s",
         seconds[seconds.len() / 2],
         seconds[seconds.len() - 1],
@@ -49,7 +54,8 @@ fn blind_suite_names_the_right_effect() {
     let min_percent: usize = std::env::var("BLIND_MIN_PERCENT").map_or(80, |s| {
         s.parse().expect("BLIND_MIN_PERCENT: a whole percentage")
     });
-    println!(
+    let _ = writeln!(
+        std::io::stderr(),
         "{correct}/{} correct; asserted >= {min_percent} % (the issue-9 goal is 90 %)",
         outcomes.len()
     );

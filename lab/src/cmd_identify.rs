@@ -375,6 +375,17 @@ fn identify_dynamics(
         refine(&mut fit, split, params, documented)?;
     }
     let pl = &fit.phase_lag;
+    if let Some(file_hz) = pl.scanned_from_hz {
+        println!(
+            "phase-lag scheme: no R_eddy gives a positive damping ratio at the file's f0 = {file_hz} \
+             Hz; f0 scanned from {:.1} to {:.1} Hz, least phase misfit at {:.1} Hz (the rig's \
+             resonance differs from the file's, or the chain has a lag (4)-(5) do not model: \
+             `maglab diagnose` tells which)",
+            file_hz / maglab_identify::dynamics::F0_SCAN_RATIO,
+            file_hz * maglab_identify::dynamics::F0_SCAN_RATIO,
+            pl.resonance_hz
+        );
+    }
     println!(
         "R̄ = 8πρN²/l_m = {:.1} Ω (ρ = {:e} Ω·m); grid: {} geometric points from {:.3} Ω, then {} \
          points in [{:.2}, {:.2}] Ω",
@@ -411,7 +422,11 @@ fn identify_dynamics(
     };
     println!(
         "{:<34} {:>12.2} {:>10.4} {:>10.1} {:>10.3} %",
-        "phase-lag scheme (f0 assumed)",
+        if pl.scanned_from_hz.is_some() {
+            "phase-lag scheme (f0 scanned)"
+        } else {
+            "phase-lag scheme (f0 assumed)"
+        },
         fit.phase_lag_params.eddy_resistance_ohm,
         fit.phase_lag_params.damping_ratio,
         fit.phase_lag_params.resonance_hz,

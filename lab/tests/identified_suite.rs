@@ -8,9 +8,9 @@
 //! `IDENTIFIED_DIR` keeps the outputs. `IDENTIFIED_SEED` (default 1) and `IDENTIFIED_CASES` (default 4: the first 4 cases, a CI
 //! budget; 32 is the whole suite) choose the run; it asserts ≥ 90 % correct.
 //!
-//! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on the first 4 cases of
-//! seed 1: 3/4 correct, but with an effect in the data the final R_eddy, ξ, f0 fit strays far
-//! from the plant (f0 320-763 Hz for a 392 Hz plant), so the effect is absorbed into the
+//! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on the first 9 cases of
+//! seed 1: 7/9 correct, but with an effect in the data the final R_eddy, ξ, f0 fit strays far
+//! from the plant (f0 239-750 Hz for a 392 Hz plant), so the effect is absorbed into the
 //! identified file. Run it with
 //! `cargo test --release -p maglab --test identified_suite -- --ignored --nocapture`.
 use maglab_plant::bench::{forc_experiment, record_all, write_dataset};

@@ -34,7 +34,7 @@ use simulate::{core_measure, simulate as run, DynamicParams, SimulationOptions};
 use std::fmt;
 use std::ops::Range;
 
-pub use phase_lag::{Candidate, PhaseLagResult};
+pub use phase_lag::{Candidate, PhaseLagResult, F0_SCAN_RATIO};
 pub use simulate::{CurrentBetweenSamples, Start};
 
 /// Resistivity of Terfenol-D, Ω·m (see the module docs).
@@ -344,14 +344,21 @@ pub fn fit_eddy_and_damping(
 ) -> Result<DynamicFit, DynamicError> {
     let prepared = prepare(experiments, base, options)?;
     let measure = core_measure(base)?;
-    let resonance_hz = options
-        .phase_lag_resonance_hz
-        .unwrap_or(base.actuator.resonance_hz);
-    let phase_lag = phase_lag::phase_lag_scheme(&measure, &prepared, resonance_hz, progress)?;
+    // An f0 given by the user stands (the scheme's error included); the file's f0 is scanned
+    // around when the measured lags cannot be met with it.
+    let phase_lag = match options.phase_lag_resonance_hz {
+        Some(f0) => phase_lag::phase_lag_scheme(&measure, &prepared, f0, progress)?,
+        None => phase_lag::phase_lag_scheme_scanning_f0(
+            &measure,
+            &prepared,
+            base.actuator.resonance_hz,
+            progress,
+        )?,
+    };
     let phase_lag_params = DynamicParams {
         eddy_resistance_ohm: phase_lag.chosen.eddy_resistance_ohm,
         damping_ratio: phase_lag.chosen.weighted_mean,
-        resonance_hz,
+        resonance_hz: phase_lag.resonance_hz,
     };
     let reports = prepared
         .experiments

@@ -75,6 +75,9 @@ pub struct PhaseLagResult {
     pub chosen: Candidate,
     /// `f0` used, Hz.
     pub resonance_hz: f64,
+    /// The parameter file's `f0` when the scheme found no damping ratio there and `f0` was
+    /// scanned instead ([`phase_lag_scheme_scanning_f0`]), Hz.
+    pub scanned_from_hz: Option<f64>,
     /// Candidate with the least variance of `ξ_k` over both grids (the paper's literal
     /// criterion, for the report), Ω.
     pub least_variance_ohm: f64,
@@ -250,6 +253,7 @@ pub fn phase_lag_scheme(
         fine,
         chosen,
         resonance_hz,
+        scanned_from_hz: None,
         least_variance_ohm,
         least_cv_ohm,
     })
@@ -262,6 +266,45 @@ fn best_index(candidates: &[Candidate]) -> Option<usize> {
         .filter(|(_, c)| c.phase_misfit_rad.is_finite())
         .min_by(|a, b| a.1.phase_misfit_rad.total_cmp(&b.1.phase_misfit_rad))
         .map(|(k, _)| k)
+}
+
+/// Ratio of the largest to the smallest `f0` of [`phase_lag_scheme_scanning_f0`]'s scan, each
+/// side of the file's value.
+pub const F0_SCAN_RATIO: f64 = 3.0;
+
+/// Points of that scan (geometric, the file's value in the middle).
+pub const F0_SCAN_POINTS: usize = 9;
+
+/// The scheme at the parameter file's `f0`; when no `R_eddy` gives a positive damping ratio there
+/// (the rig's measured lags need another resonance: a load on the rod, another rod, an extra lag
+/// in the chain), the scheme at each `f0` of a geometric scan from `f0/3` to `3 f0`, keeping the
+/// result with the least phase misfit. The scan is recorded in
+/// [`PhaseLagResult::scanned_from_hz`]; the error at the file's `f0` is returned when no scanned
+/// `f0` works either.
+pub fn phase_lag_scheme_scanning_f0(
+    measure: &PreisachMeasure,
+    prepared: &Prepared<'_>,
+    resonance_hz: f64,
+    progress: &Progress<'_>,
+) -> Result<PhaseLagResult, DynamicError> {
+    let at_file = match phase_lag_scheme(measure, prepared, resonance_hz, progress) {
+        Ok(r) => return Ok(r),
+        Err(e) => e,
+    };
+    let half = (F0_SCAN_POINTS / 2) as f64;
+    (0..F0_SCAN_POINTS)
+        .map(|i| resonance_hz * F0_SCAN_RATIO.powf((i as f64 - half) / half))
+        .filter_map(|f0| phase_lag_scheme(measure, prepared, f0, progress).ok())
+        .min_by(|a, b| {
+            a.chosen
+                .phase_misfit_rad
+                .total_cmp(&b.chosen.phase_misfit_rad)
+        })
+        .map(|r| PhaseLagResult {
+            scanned_from_hz: Some(resonance_hz),
+            ..r
+        })
+        .ok_or(at_file)
 }
 
 #[cfg(test)]
