@@ -43,7 +43,14 @@ struct Outcome {
     seconds: f64,
 }
 
-fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome {
+/// Draws case `index` of the suite `seed`, records it behind a quasi-static reversal sweep and
+/// writes the dataset folder under `root`: `(case, case folder, data folder)`.
+fn write_case(
+    seed: u64,
+    index: usize,
+    kind: suite::Kind,
+    root: &Path,
+) -> (suite::Case, std::path::PathBuf, std::path::PathBuf) {
     let params = actuator_params::paper_defaults();
     let case = suite::draw(
         &params,
@@ -67,6 +74,11 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
         info.files.retain(|name, _| name.starts_with("00_forc"));
         info.write(&data).expect("dataset.json written");
     }
+    (case, dir, data)
+}
+
+fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome {
+    let (case, dir, data) = write_case(seed, index, kind, root);
     let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
     let identified = dir.join("identified.json");
     let started = std::time::Instant::now();
@@ -124,7 +136,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
 }
 
 #[test]
-#[ignore = "fails today (3/4; identified constants far off): identification absorbs the effects; issue 9"]
+#[ignore = "fails today (7/9 on the first 9 cases; identified constants far off): identification absorbs the effects; issue 9"]
 fn identified_then_diagnosed_suite_names_the_right_effect() {
     let seed: u64 =
         std::env::var("IDENTIFIED_SEED").map_or(1, |s| s.parse().expect("IDENTIFIED_SEED"));
@@ -171,4 +183,33 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
         outcomes.len()
     );
     assert!(10 * correct >= 9 * outcomes.len());
+}
+
+/// `maglab identify` on a rod with a two-mode load (seed 1, case 6): the measured lags reach
+/// 3.4 rad at 390 Hz, which no R_eddy meets with the file's f0 = 392 Hz; identification must
+/// still produce a file (f0 scanned, said in its output) rather than stop with an error.
+#[test]
+fn identify_scans_f0_when_the_file_cannot_meet_the_lags() {
+    let kinds = suite::kinds(1, 32);
+    let temp = tempfile::tempdir().expect("temp dir");
+    let (case, _, data) = write_case(1, 6, kinds[6].clone(), temp.path());
+    assert!(
+        case.describe().contains("mechanical_load"),
+        "the suite's draw changed: case 6 is now {}",
+        case.describe()
+    );
+    let out = temp.path().join("identified.json");
+    let log = maglab(&[
+        "identify",
+        data.to_str().expect("UTF-8 path"),
+        "-o",
+        out.to_str().expect("UTF-8 path"),
+    ])
+    .expect("identify runs");
+    println!("{log}");
+    assert!(log.contains("phase-lag scheme (f0 scanned)"), "{log}");
+    let id: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).expect("written")).expect("JSON");
+    let f0 = id["actuator"]["resonance_hz"].as_f64().expect("f0");
+    assert!((392.0 / 3.0..=392.0 * 3.0).contains(&f0), "f0 {f0} Hz");
 }
