@@ -204,6 +204,9 @@ fn identify_scans_f0_when_the_file_cannot_meet_the_lags() {
         data.to_str().expect("UTF-8 path"),
         "-o",
         out.to_str().expect("UTF-8 path"),
+        // Plots into the temp dir, not the crate's working directory.
+        "--plot-dir",
+        temp.path().join("plots").to_str().expect("UTF-8 path"),
     ])
     .expect("identify runs");
     println!("{log}");

@@ -291,8 +291,11 @@ pub fn phase_lag_scheme_scanning_f0(
         Ok(r) => return Ok(r),
         Err(e) => e,
     };
-    let half = (F0_SCAN_POINTS / 2) as f64;
+    let middle = F0_SCAN_POINTS / 2;
+    let half = middle as f64;
     (0..F0_SCAN_POINTS)
+        // The middle point is the file's f0, already tried.
+        .filter(|&i| i != middle)
         .map(|i| resonance_hz * F0_SCAN_RATIO.powf((i as f64 - half) / half))
         .filter_map(|f0| phase_lag_scheme(measure, prepared, f0, progress).ok())
         .min_by(|a, b| {
