@@ -38,6 +38,7 @@ pub mod params;
 pub mod preisach;
 pub mod programme;
 pub mod record;
+pub mod select;
 pub mod sensor;
 pub mod sqrt;
 pub mod trajectory;

@@ -8,7 +8,8 @@
 //!
 //! `T(J + s, I + t)` is evaluated as `q0 + s (q1 + s q2)` with
 //! `q0 = full + (1-t) (column + (1-t) w_II)`, `q1 = row + (1-t) w_IJ`, `q2 = w_JJ`,
-//! `row = row_suffix - w_JJ`, `column = col_prefix - w_II` (see `magctl`'s `everett.rs`).
+//! `full`, `row`, `column` read from the per-pair table (see `magctl`'s `everett.rs`; before issue
+//! 12 `row` and `column` were differences of two table entries, which this budget still covers).
 //! `s` and `t` are exact (`x - ⌊x⌋` is exact in f32); `1 - t` carries one rounding (relative `u`).
 //! Every table entry is one rounding (`<= u W`) of an f64 sum, and every intermediate value is the
 //! mass of a set of cells times factors in `[0, 1]`, so `<= W` (`<= 2 W` in the diagonal case);

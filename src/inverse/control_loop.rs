@@ -326,16 +326,25 @@ impl<'m> ControlLoop<'m> {
         let (current_a, flags) = self.limiter.apply(&mut core.last_current_a, &raw);
         let c = &mut core.counters;
         c.ticks = c.ticks.wrapping_add(1);
-        c.u_clamped = c
-            .u_clamped
-            .wrapping_add(flags.has(CommandFlags::U_CLAMPED) as u32);
-        c.current_limited = c
-            .current_limited
-            .wrapping_add(flags.has(CommandFlags::CURRENT_LIMITED) as u32);
-        c.slew_limited = c
-            .slew_limited
-            .wrapping_add(flags.has(CommandFlags::SLEW_LIMITED) as u32);
-        c.faults = c.faults.wrapping_add(flags.has(CommandFlags::FAULT) as u32);
+        // Most ticks raise no flag: one test instead of four read-modify-writes.
+        if flags.0
+            & (CommandFlags::U_CLAMPED
+                | CommandFlags::CURRENT_LIMITED
+                | CommandFlags::SLEW_LIMITED
+                | CommandFlags::FAULT)
+            != 0
+        {
+            c.u_clamped = c
+                .u_clamped
+                .wrapping_add(flags.has(CommandFlags::U_CLAMPED) as u32);
+            c.current_limited = c
+                .current_limited
+                .wrapping_add(flags.has(CommandFlags::CURRENT_LIMITED) as u32);
+            c.slew_limited = c
+                .slew_limited
+                .wrapping_add(flags.has(CommandFlags::SLEW_LIMITED) as u32);
+            c.faults = c.faults.wrapping_add(flags.has(CommandFlags::FAULT) as u32);
+        }
         let (h, m) = match raw {
             Ok(r) => (r.h_a_per_m, r.m_a_per_m),
             Err(_) => (core.memory.h_a_per_m, core.memory.m_a_per_m),

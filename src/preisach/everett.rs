@@ -1,4 +1,4 @@
-//! Coefficients of the Preisach operator: the cell masses and the prefix-sum tables from which the
+//! Coefficients of the Preisach operator: the cell masses and the per-pair sums from which the
 //! Everett function `T(a, b) = μ{(β, α): b <= β <= α <= a}` is evaluated exactly in O(1).
 //!
 //! # The Everett function of a cell-uniform density
@@ -13,24 +13,42 @@
 //! * the corner square `(I, J)` over a fraction `s (1 - t)`.
 //!
 //! so `T = C[J][I+1] + s R + s² w_JJ + (1-t) K + (1-t)² w_II + s (1-t) w_IJ` with the row sum
-//! `R = Σ_{I<i<J} w_iJ` and column sum `K = Σ_{I<j<J} w_Ij` read from prefix tables. For `I == J`,
+//! `R = Σ_{I<i<J} w_iJ` and column sum `K = Σ_{I<j<J} w_Ij`, stored with `C[J][I+1]`, `w_JJ`,
+//! `w_II` and `w_IJ` side by side for each pair `I < J` (one address computation per piece). For `I == J`,
 //! `T = w_II (s - t)²` when `s >= t`. `T` is quadratic in `s` for fixed `b` and in `1 - t` for
 //! fixed `a`: that is what makes the inverse exact.
 //!
-//! Cost: one evaluation is about 12 flops and 6 table loads. Error: the tables are summed in f64
-//! and rounded once to f32, so each entry is within half an ulp of the exact sum; an evaluation
+//! Cost: one evaluation is about 12 flops and 6 adjacent table loads. Error: the tables are summed
+//! in f64 and rounded once to f32, so each entry is within half an ulp of the exact sum; an evaluation
 //! adds at most ~8 roundings of values bounded by `Σ w`, i.e. `|ΔT| <= 8 ε Σ w` with
 //! `ε = 2⁻²⁴`.
 
 use super::grid::{cell_index, CELL_COUNT, LEVELS};
 
-/// Table sums for one pair of grid intervals, see [`PreisachMeasure::strip_sums`].
-struct StripSums {
+/// The table entries of one pair of grid intervals `I < J` (see the module docs), stored side by
+/// side so that one address computation serves every load of a piece of the inverse.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StripSums {
     w_jj: f32,
     w_ij: f32,
+    w_ii: f32,
+    /// `R = Σ_{I<i<J} w_iJ`.
     row: f32,
+    /// `K = Σ_{I<j<J} w_Ij`.
     column: f32,
+    /// `C[J][I+1] = Σ_{I<i<=j<J} w_ij`, the cells covered fully.
     full: f32,
+}
+
+impl StripSums {
+    const ZERO: StripSums = StripSums {
+        w_jj: 0.0,
+        w_ij: 0.0,
+        w_ii: 0.0,
+        row: 0.0,
+        column: 0.0,
+        full: 0.0,
+    };
 }
 
 /// Coefficients of `T(J + s, ·)` or `T(·, I + 1 - v)` as a quadratic `q0 + q1 u + q2 u²`.
@@ -57,7 +75,8 @@ impl Quadratic {
 /// the memory is the separate [`super::PreisachState`]).
 ///
 /// Built once by [`PreisachMeasure::new`], a `const fn`: for the baked parameters the tables are
-/// computed at compile time and live in flash (about 8 KiB).
+/// computed at compile time and live in flash (about 17.5 KiB: the masses, 2.5 KiB, and the
+/// per-pair sums, 15 KiB).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PreisachMeasure {
     pub(crate) h_min_a_per_m: f32,
@@ -72,12 +91,9 @@ pub struct PreisachMeasure {
     pub(crate) max_density_a_per_m: f32,
     /// `w[j][i]` = mass of cell `(i, j)` for `i <= j`, 0 otherwise.
     pub(crate) w: [[f32; LEVELS]; LEVELS],
-    /// `corner[J][I]` = `T(J, I)` for integers `0 <= I <= J <= LEVELS`.
-    pub(crate) corner: [[f32; LEVELS + 1]; LEVELS + 1],
-    /// `row_suffix[j][i]` = `Σ_{i <= i' <= j} w[j][i']`.
-    pub(crate) row_suffix: [[f32; LEVELS]; LEVELS],
-    /// `col_prefix[i][j]` = `Σ_{i <= j' <= j} w[j'][i]`.
-    pub(crate) col_prefix: [[f32; LEVELS]; LEVELS],
+    /// `strips[J][I]`: the sums of the pair `I < J` (zero for `I >= J`), each summed in f64 and
+    /// rounded once.
+    pub(crate) strips: [[StripSums; LEVELS]; LEVELS],
 }
 
 impl PreisachMeasure {
@@ -112,7 +128,6 @@ impl PreisachMeasure {
         }
         // corner[J][I] = Σ_{I <= i <= j < J} w_ij, by rows: corner[J][I] = corner[J-1][I] + Σ_{I<=i<=J-1} w[J-1][i].
         let mut corner64 = [[0.0f64; LEVELS + 1]; LEVELS + 1];
-        let mut corner = [[0.0f32; LEVELS + 1]; LEVELS + 1];
         let mut big_j = 1;
         while big_j <= LEVELS {
             let mut big_i = 0;
@@ -129,34 +144,34 @@ impl PreisachMeasure {
                     0.0
                 };
                 corner64[big_j][big_i] = above + row;
-                corner[big_j][big_i] = corner64[big_j][big_i] as f32;
                 big_i += 1;
             }
             big_j += 1;
         }
-        let mut row_suffix = [[0.0f32; LEVELS]; LEVELS];
-        let mut col_prefix = [[0.0f32; LEVELS]; LEVELS];
-        let mut j = 0;
-        while j < LEVELS {
-            let mut acc = 0.0f64;
-            let mut i = j + 1;
-            while i > 0 {
-                i -= 1;
-                acc += w64[j][i];
-                row_suffix[j][i] = acc as f32;
+        let mut strips = [[StripSums::ZERO; LEVELS]; LEVELS];
+        let mut big_j = 1;
+        while big_j < LEVELS {
+            let mut big_i = 0;
+            while big_i < big_j {
+                let mut row = 0.0f64;
+                let mut column = 0.0f64;
+                let mut k = big_i + 1;
+                while k < big_j {
+                    row += w64[big_j][k];
+                    column += w64[k][big_i];
+                    k += 1;
+                }
+                strips[big_j][big_i] = StripSums {
+                    w_jj: w[big_j][big_j],
+                    w_ij: w[big_j][big_i],
+                    w_ii: w[big_i][big_i],
+                    row: row as f32,
+                    column: column as f32,
+                    full: corner64[big_j][big_i + 1] as f32,
+                };
+                big_i += 1;
             }
-            j += 1;
-        }
-        let mut i = 0;
-        while i < LEVELS {
-            let mut acc = 0.0f64;
-            let mut j = i;
-            while j < LEVELS {
-                acc += w64[j][i];
-                col_prefix[i][j] = acc as f32;
-                j += 1;
-            }
-            i += 1;
+            big_j += 1;
         }
         let width = (h_max_a_per_m as f64 - h_min_a_per_m as f64) / LEVELS as f64;
         PreisachMeasure {
@@ -167,9 +182,7 @@ impl PreisachMeasure {
             total_a_per_m: total as f32,
             max_density_a_per_m: max_density as f32,
             w,
-            corner,
-            row_suffix,
-            col_prefix,
+            strips,
         }
     }
 
@@ -229,23 +242,12 @@ impl PreisachMeasure {
         self.quadratic_in_alpha(big_j, big_i, t).at(s)
     }
 
-    /// The table reads shared by both quadratic forms for cells `I < J` (see the module docs):
-    /// `w_JJ`, `w_IJ`, the row sum `R = Σ_{I<i<J} w_iJ`, the column sum `K = Σ_{I<j<J} w_Ij` and
-    /// the full-cell corner `C[J][I+1]`. Every index is clamped into its table, so the optimizer
-    /// can drop all bounds checks (the firmware's link-time no-panic proof relies on it).
+    /// The table entries of the pair `I < J` shared by both quadratic forms (see the module
+    /// docs). The indices are clamped into the table, so the optimizer can drop all bounds checks
+    /// (the firmware's link-time no-panic proof relies on it).
     #[inline(always)]
     fn strip_sums(&self, big_j: usize, big_i: usize) -> StripSums {
-        let big_j = big_j.min(LEVELS - 1);
-        let big_i = big_i.min(LEVELS - 1);
-        let w_jj = self.w[big_j][big_j];
-        let w_ii = self.w[big_i][big_i];
-        StripSums {
-            w_jj,
-            w_ij: self.w[big_j][big_i],
-            row: self.row_suffix[big_j][(big_i + 1).min(LEVELS - 1)] - w_jj,
-            column: self.col_prefix[big_i][big_j.saturating_sub(1)] - w_ii,
-            full: self.corner[big_j][(big_i + 1).min(LEVELS)],
-        }
+        self.strips[big_j.min(LEVELS - 1)][big_i.min(LEVELS - 1)]
     }
 
     /// `T(J + s, I + t)` as a quadratic in `s` (fixed `b = I + t`), valid for `J + s >= I + t`.
@@ -271,11 +273,10 @@ impl PreisachMeasure {
         }
         let one_minus_t = 1.0 - t;
         let p = self.strip_sums(big_j, big_i);
-        let (w_jj, w_ij, row, column, full) = (p.w_jj, p.w_ij, p.row, p.column, p.full);
         Quadratic {
-            q0: full + one_minus_t * (column + one_minus_t * w_ii),
-            q1: row + one_minus_t * w_ij,
-            q2: w_jj,
+            q0: p.full + one_minus_t * (p.column + one_minus_t * p.w_ii),
+            q1: p.row + one_minus_t * p.w_ij,
+            q2: p.w_jj,
         }
     }
 
@@ -303,11 +304,10 @@ impl PreisachMeasure {
             };
         }
         let p = self.strip_sums(big_j, big_i);
-        let (w_jj, w_ij, row, column, full) = (p.w_jj, p.w_ij, p.row, p.column, p.full);
         Quadratic {
-            q0: full + s * (row + s * w_jj),
-            q1: column + s * w_ij,
-            q2: w_ii,
+            q0: p.full + s * (p.row + s * p.w_jj),
+            q1: p.column + s * p.w_ij,
+            q2: p.w_ii,
         }
     }
 }
@@ -325,11 +325,44 @@ pub(crate) fn split(x: f32) -> (usize, f32) {
 /// below an integer `x` is the one entered next.
 #[inline]
 pub(crate) fn split_down(x: f32) -> (usize, f32) {
-    let c = libm::ceilf(x);
-    let i = if c >= 1.0 {
-        (c as usize - 1).min(LEVELS - 1)
-    } else {
-        0
-    };
+    // ⌈x⌉ - 1 from the truncation (`as` saturates: negative and NaN give 0), capped before the
+    // `+ 1` so that it cannot overflow; `libm::ceilf` is a software routine on the M4F.
+    let floor = (x as usize).min(LEVELS);
+    let ceil = if (floor as f32) < x { floor + 1 } else { floor };
+    let i = ceil.saturating_sub(1).min(LEVELS - 1);
     (i, x - i as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::{split_down, LEVELS};
+    use std::vec;
+
+    /// `split_down` equals its definition through `ceil` (`I = ⌈x⌉ - 1` clamped to the grid) on
+    /// a sweep of the range with every grid line and its f32 neighbours, and beyond the range.
+    #[test]
+    fn split_down_is_ceil_minus_one() {
+        let by_ceil = |x: f32| -> usize {
+            let c = libm::ceilf(x);
+            if c >= 1.0 {
+                (c as usize - 1).min(LEVELS - 1)
+            } else {
+                0
+            }
+        };
+        let mut inputs = vec![-1.0f32, -0.0, 0.0, 1.0e-30, 26.0, 1.0e30, f32::NAN];
+        for k in 0..=LEVELS {
+            let x = k as f32;
+            inputs.extend([x, f32::from_bits(x.to_bits() + 1), x - x * f32::EPSILON]);
+        }
+        inputs.extend((0..2500).map(|k| k as f32 * 0.0101));
+        for x in inputs {
+            let (i, t) = split_down(x);
+            assert_eq!(i, by_ceil(x), "x = {x}");
+            if (0.0..=LEVELS as f32).contains(&x) {
+                assert_eq!(t, x - i as f32);
+            }
+        }
+    }
 }

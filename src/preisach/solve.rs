@@ -19,7 +19,8 @@
 
 use super::everett::{split, split_down, PreisachMeasure};
 use super::grid::LEVELS;
-use super::staircase::PreisachState;
+use super::staircase::{PieceMemo, PreisachState};
+use crate::select::{clamp_f32, max_f32, min_f32};
 
 /// Whether the target was out of reach and clamped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -60,7 +61,9 @@ impl PreisachMeasure {
         state: &mut PreisachState<N>,
         m_target_a_per_m: f32,
     ) -> Result<Solution, SolveError> {
-        self.solve(state, 0.0, m_target_a_per_m)
+        // The same walk as `solve` with `a = 0` known at compile time (the control interrupt's
+        // case): the `a·h` terms drop out; the results are bit-identical to `solve(state, 0, m)`.
+        self.solve_impl::<N, true>(state, 0.0, m_target_a_per_m)
     }
 
     /// Solves `a·h + Γ(h) = r` (`a >= 0`, units A/m) from the current state and commits the state.
@@ -73,17 +76,32 @@ impl PreisachMeasure {
         a: f32,
         r_a_per_m: f32,
     ) -> Result<Solution, SolveError> {
+        self.solve_impl::<N, false>(state, a, r_a_per_m)
+    }
+
+    /// `solve`, with `PLAIN` telling that `a` is 0.
+    #[inline(always)]
+    fn solve_impl<const N: usize, const PLAIN: bool>(
+        &self,
+        state: &mut PreisachState<N>,
+        a: f32,
+        r_a_per_m: f32,
+    ) -> Result<Solution, SolveError> {
         if !a.is_finite() || !r_a_per_m.is_finite() {
             return Err(SolveError::NonFinite);
         }
         if a < 0.0 {
             return Err(SolveError::NegativeSlope);
         }
-        let g_now = a * self.denormalize(state.x) + self.output_a_per_m(state);
+        let g_now = if PLAIN {
+            self.output_a_per_m(state)
+        } else {
+            a * self.denormalize(state.x) + self.output_a_per_m(state)
+        };
         if r_a_per_m > g_now {
-            Ok(self.solve_rising(state, a, r_a_per_m))
+            Ok(self.solve_rising::<N, PLAIN>(state, a, r_a_per_m))
         } else if r_a_per_m < g_now {
-            Ok(self.solve_falling(state, a, r_a_per_m))
+            Ok(self.solve_falling::<N, PLAIN>(state, a, r_a_per_m))
         } else {
             Ok(Solution {
                 h_a_per_m: self.denormalize(state.x),
@@ -93,13 +111,18 @@ impl PreisachMeasure {
         }
     }
 
-    /// `g = a·h + 2 μ(P₊) - Σ w` at normalized `x` for a given `μ(P₊)`.
-    #[inline]
-    fn g(&self, a: f32, x: f32, plus_mass: f32) -> f32 {
-        a * self.denormalize(x) + 2.0 * plus_mass - self.total_a_per_m
+    /// `g = a·h + 2 μ(P₊) - Σ w` at normalized `x` for a given `μ(P₊)` (`PLAIN`: `a = 0`).
+    #[inline(always)]
+    fn g<const PLAIN: bool>(&self, a: f32, x: f32, plus_mass: f32) -> f32 {
+        if PLAIN {
+            2.0 * plus_mass - self.total_a_per_m
+        } else {
+            a * self.denormalize(x) + 2.0 * plus_mass - self.total_a_per_m
+        }
     }
 
-    fn solve_rising<const N: usize>(
+    #[inline(always)]
+    fn solve_rising<const N: usize, const PLAIN: bool>(
         &self,
         state: &mut PreisachState<N>,
         a: f32,
@@ -108,7 +131,11 @@ impl PreisachMeasure {
         if !state.rising() {
             self.reverse(state);
         }
-        let a_cells = a * self.cell_width_a_per_m;
+        let a_cells = if PLAIN {
+            0.0
+        } else {
+            a * self.cell_width_a_per_m
+        };
         for _ in 0..(LEVELS + N + 2) {
             let m = state.last_index();
             let base = state
@@ -123,19 +150,37 @@ impl PreisachMeasure {
                 LEVELS as f32
             };
             let (big_j, s0) = split(x0);
-            let grid_next = if s0 < 1.0 { big_j as f32 + 1.0 } else { x0 };
-            let xb = grid_next.min(cap);
-            let (big_i, t) = split(base.x);
-            let quad = self.quadratic_in_alpha(big_j, big_i, t);
-            let plus_b = base.cum + quad.at(xb - big_j as f32);
-            let g_b = self.g(a, xb, plus_b);
+            let tag = big_j as u32;
+            let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, cap) {
+                Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
+                None => {
+                    let grid_next = if s0 < 1.0 { big_j as f32 + 1.0 } else { x0 };
+                    let xb = min_f32(grid_next, cap);
+                    let (big_i, t) = split(base.x);
+                    let quad = self.quadratic_in_alpha(big_j, big_i, t);
+                    (quad, xb, base.cum + quad.at(xb - big_j as f32), false)
+                }
+            };
+            let g_b = self.g::<PLAIN>(a, xb, plus_b);
             if g_b >= r {
-                let q = r - self.g(a, x0, state.plus_mass);
+                let q = r - self.g::<PLAIN>(a, x0, state.plus_mass);
                 let b_lin = 2.0 * quad.slope(s0) + a_cells;
                 let a_quad = 2.0 * quad.q2;
                 let sigma = positive_root(a_quad, b_lin, q, xb - x0);
                 state.x = x0 + sigma;
-                self.update_plus_mass(state);
+                // μ(P₊) on this piece is the same quadratic: no second Everett evaluation.
+                state.plus_mass = base.cum + quad.at(state.x - big_j as f32);
+                if !remembered {
+                    state.piece = PieceMemo {
+                        tag,
+                        base_x: base.x,
+                        base_cum: base.cum,
+                        bound: cap,
+                        quad,
+                        end_x: xb,
+                        end_plus_mass: plus_b,
+                    };
+                }
                 return self.solution(state, Saturation::None);
             }
             state.x = xb;
@@ -164,7 +209,8 @@ impl PreisachMeasure {
         }
     }
 
-    fn solve_falling<const N: usize>(
+    #[inline(always)]
+    fn solve_falling<const N: usize, const PLAIN: bool>(
         &self,
         state: &mut PreisachState<N>,
         a: f32,
@@ -173,7 +219,11 @@ impl PreisachMeasure {
         if state.rising() {
             self.reverse(state);
         }
-        let a_cells = a * self.cell_width_a_per_m;
+        let a_cells = if PLAIN {
+            0.0
+        } else {
+            a * self.cell_width_a_per_m
+        };
         for _ in 0..(LEVELS + N + 2) {
             let m = state.last_index();
             let base = state
@@ -184,21 +234,38 @@ impl PreisachMeasure {
             let x0 = state.x;
             let floor = if m >= 3 { state.vertex_x(m - 1) } else { 0.0 };
             let (big_i, t0) = split_down(x0);
-            let grid_next = if t0 > 0.0 { big_i as f32 } else { x0 };
-            let xb = grid_next.max(floor);
-            let (big_j, s) = split(base.x);
-            let quad = self.quadratic_in_beta(big_j, s, big_i);
-            // v = I + 1 - x grows as x falls.
+            let tag = big_i as u32 | PieceMemo::FALLING;
+            let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, floor) {
+                Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
+                None => {
+                    let grid_next = if t0 > 0.0 { big_i as f32 } else { x0 };
+                    let xb = max_f32(grid_next, floor);
+                    let (big_j, s) = split(base.x);
+                    let quad = self.quadratic_in_beta(big_j, s, big_i);
+                    // v = I + 1 - x grows as x falls.
+                    (quad, xb, base.cum - quad.at(big_i as f32 + 1.0 - xb), false)
+                }
+            };
             let v0 = 1.0 - t0;
-            let plus_b = base.cum - quad.at(big_i as f32 + 1.0 - xb);
-            let g_b = self.g(a, xb, plus_b);
+            let g_b = self.g::<PLAIN>(a, xb, plus_b);
             if g_b <= r {
-                let q = self.g(a, x0, state.plus_mass) - r;
+                let q = self.g::<PLAIN>(a, x0, state.plus_mass) - r;
                 let b_lin = 2.0 * quad.slope(v0) + a_cells;
                 let a_quad = 2.0 * quad.q2;
                 let sigma = positive_root(a_quad, b_lin, q, x0 - xb);
                 state.x = x0 - sigma;
-                self.update_plus_mass(state);
+                state.plus_mass = base.cum - quad.at(big_i as f32 + 1.0 - state.x);
+                if !remembered {
+                    state.piece = PieceMemo {
+                        tag,
+                        base_x: base.x,
+                        base_cum: base.cum,
+                        bound: floor,
+                        quad,
+                        end_x: xb,
+                        end_plus_mass: plus_b,
+                    };
+                }
                 return self.solution(state, Saturation::None);
             }
             state.x = xb;
@@ -244,13 +311,90 @@ impl PreisachMeasure {
 /// form that avoids cancellation. Degenerate pieces return the end of the piece.
 #[inline]
 fn positive_root(a_quad: f32, b_lin: f32, q: f32, limit: f32) -> f32 {
-    let q = q.max(0.0);
-    let disc = (b_lin * b_lin + 4.0 * a_quad * q).max(0.0);
+    // Compare-and-select instead of f32::max/clamp (library calls on the M4F, `crate::select`).
+    let q = max_f32(q, 0.0);
+    let disc = max_f32(b_lin * b_lin + 4.0 * a_quad * q, 0.0);
     let denom = b_lin + crate::sqrt::sqrt_f32(disc);
+    let limit = max_f32(limit, 0.0);
     let sigma = if denom > 0.0 { 2.0 * q / denom } else { limit };
     if sigma.is_finite() {
-        sigma.clamp(0.0, limit.max(0.0))
+        clamp_f32(sigma, 0.0, limit)
     } else {
-        limit.max(0.0)
+        limit
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::super::staircase::{PieceMemo, PIECE_MEMO_HITS};
+    use super::super::PreisachState;
+    use crate::params::BAKED_MEASURE;
+    use core::sync::atomic::Ordering;
+
+    /// The piece memo changes no result: the same random sequence of inverses, solves (with
+    /// `a > 0`) and forward updates on two copies of a state, one of which forgets its memo before
+    /// every call, gives bit-identical inputs, outputs and memories — through reversals, wipe-outs,
+    /// saturation, full-buffer merges (capacity 8) and a resolution that merges hair-thin pairs.
+    #[test]
+    fn the_piece_memo_changes_no_result() {
+        let measure = &BAKED_MEASURE;
+        let total = measure.saturation_a_per_m();
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        let mut uniform = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for resolution in [0.0, 1.0e-3] {
+            let mut with: PreisachState<8> = measure.demagnetized();
+            with.set_resolution(resolution);
+            let mut without = with.clone();
+            let hits_before = PIECE_MEMO_HITS.load(Ordering::Relaxed);
+            let mut target = 0.0f32;
+            for step in 0..20_000 {
+                // Mostly small moves (the control interrupt's case: the memo hits), now and then a
+                // jump across the range or beyond saturation.
+                let u = uniform();
+                target = if u < 0.9 {
+                    target + 0.004 * total * (uniform() - 0.5)
+                } else {
+                    1.2 * total * (2.0 * uniform() - 1.0)
+                };
+                without.piece.tag = PieceMemo::NONE;
+                let (a, b) = match step % 7 {
+                    0 => {
+                        let a = 40.0 * uniform();
+                        (
+                            measure.solve(&mut with, a, target),
+                            measure.solve(&mut without, a, target),
+                        )
+                    }
+                    1 => {
+                        let h = measure.h_min_a_per_m()
+                            + (measure.h_max_a_per_m() - measure.h_min_a_per_m()) * uniform();
+                        let (ma, mb) =
+                            (measure.apply(&mut with, h), measure.apply(&mut without, h));
+                        assert_eq!(ma.map(f32::to_bits), mb.map(f32::to_bits));
+                        continue;
+                    }
+                    _ => (
+                        measure.invert(&mut with, target),
+                        measure.invert(&mut without, target),
+                    ),
+                };
+                let (a, b) = (a.expect("finite"), b.expect("finite"));
+                assert_eq!(a.h_a_per_m.to_bits(), b.h_a_per_m.to_bits(), "step {step}");
+                assert_eq!(a.m_a_per_m.to_bits(), b.m_a_per_m.to_bits(), "step {step}");
+                assert_eq!(a.saturation, b.saturation);
+                assert_eq!(with.x.to_bits(), without.x.to_bits());
+                assert_eq!(with.plus_mass.to_bits(), without.plus_mass.to_bits());
+                assert_eq!(with.vertices, without.vertices, "step {step}");
+            }
+            // Other tests may add to the counter too; this one alone makes thousands of hits.
+            let hits = PIECE_MEMO_HITS.load(Ordering::Relaxed) - hits_before;
+            assert!(hits > 5_000, "the memo was used {hits} times");
+        }
     }
 }

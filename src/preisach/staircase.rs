@@ -58,7 +58,7 @@
 //! [`PreisachState::merge_error_a_per_m`] as every merge: `|ΔM| <= 2 ρ_max · resolution` per merge.
 //! The default resolution is 0 (exact memory); the control loop sets one for its own memory.
 
-use super::everett::PreisachMeasure;
+use super::everett::{PreisachMeasure, Quadratic};
 use super::grid::LEVELS;
 use heapless::Vec;
 
@@ -117,6 +117,78 @@ pub(crate) struct Vertex {
     pub cum: f32,
 }
 
+/// The piece of the input path the last solve ended on, remembered so that the next solve, which
+/// usually starts on the same piece, need not rebuild it (`solve.rs`). It is a memo, not memory:
+/// the piece's quadratic and end are a function of the direction, the grid cell, the last vertex
+/// (input and running sum) and the bound (the vertex before it), and the memo is used only when
+/// all of those equal, bit for bit, the ones it was built from — so whatever it holds, a solve gives
+/// bit for bit what it gives without it. (The measure is not part of the key: a state belongs to
+/// the measure that built it, whose running sums its vertices already store.) States compare
+/// equal whatever their memos hold.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PieceMemo {
+    /// Grid cell of the piece plus [`PieceMemo::FALLING`] for a falling piece; [`PieceMemo::NONE`]
+    /// when empty.
+    pub tag: u32,
+    /// The last vertex the piece was built from: input, running sum.
+    pub base_x: f32,
+    pub base_cum: f32,
+    /// The vertex before it (the cap of a rising piece, the floor of a falling one).
+    pub bound: f32,
+    /// `T` along the piece (see `everett.rs`).
+    pub quad: Quadratic,
+    /// The end of the piece and `μ(P₊)` there.
+    pub end_x: f32,
+    pub end_plus_mass: f32,
+}
+
+impl PieceMemo {
+    pub const NONE: u32 = u32::MAX;
+    pub const FALLING: u32 = 1 << 8;
+    const EMPTY: PieceMemo = PieceMemo {
+        tag: Self::NONE,
+        base_x: 0.0,
+        base_cum: 0.0,
+        bound: 0.0,
+        quad: Quadratic {
+            q0: 0.0,
+            q1: 0.0,
+            q2: 0.0,
+        },
+        end_x: 0.0,
+        end_plus_mass: 0.0,
+    };
+
+    /// The remembered piece if it was built from exactly these inputs.
+    #[inline(always)]
+    pub fn lookup(&self, tag: u32, base: Vertex, bound: f32) -> Option<(Quadratic, f32, f32)> {
+        // Bit patterns, OR-ed: one test instead of four floating-point compares (a -0 against
+        // a +0 just misses).
+        let differs = (self.tag ^ tag)
+            | (self.base_x.to_bits() ^ base.x.to_bits())
+            | (self.base_cum.to_bits() ^ base.cum.to_bits())
+            | (self.bound.to_bits() ^ bound.to_bits());
+        if differs == 0 {
+            #[cfg(test)]
+            PIECE_MEMO_HITS.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+            Some((self.quad, self.end_x, self.end_plus_mass))
+        } else {
+            None
+        }
+    }
+}
+
+/// How often a memo was used (tests only: shows that the memo test exercises it).
+#[cfg(test)]
+pub(crate) static PIECE_MEMO_HITS: core::sync::atomic::AtomicU32 =
+    core::sync::atomic::AtomicU32::new(0);
+
+impl PartialEq for PieceMemo {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
 /// A rejected input: the state is left unchanged.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InputError {
@@ -137,6 +209,8 @@ pub struct PreisachState<const N: usize = DEFAULT_CAPACITY> {
     merge_error_a_per_m: f32,
     /// Corner-rectangle area below which a new reversal pair is merged at once, cells² (0: exact).
     resolution_cells2: f32,
+    /// The last solve's piece (a memo; see [`PieceMemo`]).
+    pub(crate) piece: PieceMemo,
 }
 
 impl<const N: usize> PreisachState<N> {
@@ -166,6 +240,7 @@ impl<const N: usize> PreisachState<N> {
             merges: 0,
             merge_error_a_per_m: 0.0,
             resolution_cells2: 0.0,
+            piece: PieceMemo::EMPTY,
         }
     }
 
@@ -228,7 +303,8 @@ impl<const N: usize> PreisachState<N> {
     /// Is the moving segment rising (last vertex a minimum)?
     #[inline]
     pub(crate) fn rising(&self) -> bool {
-        self.last_index() % 2 == 0
+        // Last index even ⇔ length odd (the anchor is never removed, so the length is ≥ 1).
+        self.vertices.len() % 2 == 1
     }
 }
 

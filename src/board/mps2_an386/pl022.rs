@@ -1,5 +1,5 @@
 //! ARM PrimeCell PL022 SSP as an embedded-hal [`SpiBus`] (8-bit frames, Motorola SPI).
-//! Registers: CR0 +0x00, CR1 +0x04, DR +0x08, SR +0x0C (TNF bit 1, RNE bit 2, BSY bit 4),
+//! Registers: CR0 +0x00, CR1 +0x04, DR +0x08, SR +0x0C (TFE bit 0, TNF bit 1, RNE bit 2, BSY bit 4),
 //! CPSR +0x10.
 
 use crate::board::polled_spi::{wait_until, ByteExchange, SpiTimeout};
@@ -10,6 +10,7 @@ const CR1: usize = 0x04;
 const DR: usize = 0x08;
 const SR: usize = 0x0C;
 const CPSR: usize = 0x10;
+const SR_TFE: u32 = 1 << 0;
 const SR_TNF: u32 = 1 << 1;
 const SR_RNE: u32 = 1 << 2;
 const SR_BSY: u32 = 1 << 4;
@@ -62,15 +63,30 @@ impl ByteExchange for Pl022 {
         self.sr() & SR_BSY != 0
     }
 
-    /// Fills the 8-entry transmit FIFO (waiting for room only when it is full), waits until the
-    /// shifter is idle, then empties the receive FIFO (bounded by its depth).
+    /// Fills the 8-entry transmit FIFO, waits until the shifter is idle, then empties the receive
+    /// FIFO (bounded by its depth). A frame that fits the FIFO while it is empty (TFE, one status
+    /// read) is written without a poll per byte, and its bytes, all received once the shifter is
+    /// idle, are read back without one either (the DAC frame: 3 bytes); otherwise each byte waits
+    /// for room (TNF).
     #[inline(always)]
     fn write_all(&mut self, words: &[u8]) -> Result<(), SpiTimeout> {
-        for &w in words {
-            wait_until(|| self.sr() & SR_TNF != 0)?;
-            unsafe { write_volatile(self.reg(DR), w as u32) };
+        let fits = words.len() <= FIFO_DEPTH && self.sr() & SR_TFE != 0;
+        if fits {
+            for &w in words {
+                unsafe { write_volatile(self.reg(DR), w as u32) };
+            }
+        } else {
+            for &w in words {
+                wait_until(|| self.sr() & SR_TNF != 0)?;
+                unsafe { write_volatile(self.reg(DR), w as u32) };
+            }
         }
         wait_until(|| self.sr() & SR_BSY == 0)?;
+        if fits {
+            for _ in words {
+                unsafe { read_volatile(self.reg(DR)) };
+            }
+        }
         for _ in 0..FIFO_DEPTH {
             if self.sr() & SR_RNE == 0 {
                 break;
