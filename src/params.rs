@@ -54,6 +54,8 @@ pub struct PreisachGrid {
     pub h_min_a_per_m: f32,
     /// Upper end of the field range, A/m.
     pub h_max_a_per_m: f32,
+    /// The grid lines (`LEVELS + 1`, from `h_min` to `h_max`), A/m; `None`: equal intervals.
+    pub lines_a_per_m: Option<[f32; crate::preisach::LEVELS + 1]>,
     /// Cell masses, A/m.
     pub weights_a_per_m: [f32; CELL_COUNT],
 }
@@ -165,11 +167,18 @@ pub struct ActuatorParameters {
 include!(concat!(env!("OUT_DIR"), "/baked_params.rs"));
 
 /// The Preisach measure of the baked parameters, its tables computed at compile time.
-pub static BAKED_MEASURE: crate::preisach::PreisachMeasure = crate::preisach::PreisachMeasure::new(
-    &BAKED_PARAMETERS.preisach.weights_a_per_m,
-    BAKED_PARAMETERS.preisach.h_min_a_per_m,
-    BAKED_PARAMETERS.preisach.h_max_a_per_m,
-);
+pub static BAKED_MEASURE: crate::preisach::PreisachMeasure =
+    match &BAKED_PARAMETERS.preisach.lines_a_per_m {
+        Some(lines) => crate::preisach::PreisachMeasure::with_lines(
+            &BAKED_PARAMETERS.preisach.weights_a_per_m,
+            lines,
+        ),
+        None => crate::preisach::PreisachMeasure::new(
+            &BAKED_PARAMETERS.preisach.weights_a_per_m,
+            BAKED_PARAMETERS.preisach.h_min_a_per_m,
+            BAKED_PARAMETERS.preisach.h_max_a_per_m,
+        ),
+    };
 
 #[cfg(feature = "host")]
 mod from_file {
@@ -243,20 +252,48 @@ mod from_file {
             for (dst, &src) in weights_a_per_m.iter_mut().zip(&p.weights_a_per_m) {
                 *dst = src as f32;
             }
+            let lines_a_per_m = match &p.grid_lines_a_per_m {
+                None => None,
+                Some(given) => {
+                    let levels = crate::preisach::LEVELS;
+                    if given.len() != levels + 1 {
+                        return Err(ParamsError {
+                            source_name: source_name.to_string(),
+                            field: "preisach.grid_lines_a_per_m".into(),
+                            reason: format!(
+                                "the core needs {} grid lines, the file has {}",
+                                levels + 1,
+                                given.len()
+                            ),
+                        });
+                    }
+                    let mut lines = [0.0f32; crate::preisach::LEVELS + 1];
+                    for (dst, &src) in lines.iter_mut().zip(given) {
+                        *dst = src as f32;
+                    }
+                    Some(lines)
+                }
+            };
             Ok(PreisachGrid {
                 h_min_a_per_m: p.h_min_a_per_m as f32,
                 h_max_a_per_m: p.h_max_a_per_m as f32,
+                lines_a_per_m,
                 weights_a_per_m,
             })
         }
 
         /// The Preisach measure (operator coefficients) of this grid.
         pub fn measure(&self) -> crate::preisach::PreisachMeasure {
-            crate::preisach::PreisachMeasure::new(
-                &self.weights_a_per_m,
-                self.h_min_a_per_m,
-                self.h_max_a_per_m,
-            )
+            match &self.lines_a_per_m {
+                Some(lines) => {
+                    crate::preisach::PreisachMeasure::with_lines(&self.weights_a_per_m, lines)
+                }
+                None => crate::preisach::PreisachMeasure::new(
+                    &self.weights_a_per_m,
+                    self.h_min_a_per_m,
+                    self.h_max_a_per_m,
+                ),
+            }
         }
     }
 

@@ -69,7 +69,6 @@ use crate::effects::EffectName;
 use crate::fit::{fit, ExperimentData, FitSettings, Fitted, ModelSetup};
 use crate::model::{run_mech, Electro, Interpolation, Mech, ModelStart, Nominal};
 use crate::signal;
-use magctl::preisach::PreisachMeasure;
 use maglab_identify::data::Measurement;
 use maglab_identify::dataset_info::{DatasetInfo, StartState};
 use rayon::prelude::*;
@@ -405,11 +404,7 @@ pub fn diagnose(
     let step_s = 1.0 / rate_hz;
     let core = magctl::params::ActuatorParameters::from_file(params, "nominal parameters")
         .map_err(|e| e.to_string())?;
-    let measure = PreisachMeasure::new(
-        &core.preisach.weights_a_per_m,
-        core.preisach.h_min_a_per_m,
-        core.preisach.h_max_a_per_m,
-    );
+    let measure = core.preisach.measure();
     let mut infos = describe(measurements, rate_hz);
     let nominal = nominal_for_data(params, measurements, &infos);
     let file_name = |m: &Measurement| {

@@ -18,7 +18,6 @@ use crate::diagnosis::{
 use crate::fit::{FitSettings, ModelSetup};
 use crate::model::{Electro, Interpolation, Mech};
 use crate::signal;
-use magctl::preisach::PreisachMeasure;
 use maglab_identify::data::Measurement;
 use maglab_identify::dataset_info::DatasetInfo;
 use serde::Serialize;
@@ -135,11 +134,7 @@ pub fn identify_dynamics(
     }
     let core = magctl::params::ActuatorParameters::from_file(params, "base parameters")
         .map_err(|e| e.to_string())?;
-    let measure = PreisachMeasure::new(
-        &core.preisach.weights_a_per_m,
-        core.preisach.h_min_a_per_m,
-        core.preisach.h_max_a_per_m,
-    );
+    let measure = core.preisach.measure();
     let infos = describe(measurements, rate_hz);
     let nominal = nominal_for_data(params, measurements, &infos);
     let base = [

@@ -743,11 +743,7 @@ mod tests {
         let params = actuator_params::paper_defaults();
         let nominal = Nominal::from_params(&params);
         let core = magctl::params::ActuatorParameters::from_file(&params, "defaults").unwrap();
-        let measure = PreisachMeasure::new(
-            &core.preisach.weights_a_per_m,
-            core.preisach.h_min_a_per_m,
-            core.preisach.h_max_a_per_m,
-        );
+        let measure = core.preisach.measure();
         let step_s = 1e-4;
         let currents: Vec<f64> = (0..2000)
             .map(|k| 0.3 + 0.25 * (2.0 * PI * 150.0 * k as f64 * step_s).sin())

@@ -90,7 +90,9 @@ pub fn solve_rounding_a_per_m(
 ) -> f64 {
     let u = F32_UNIT_ROUNDOFF;
     let w = measure.saturation_a_per_m() as f64;
-    let slope = 2.0 * line_density_bound_a_per_m(measure) + a * measure.cell_width_a_per_m() as f64;
+    // `a Δ` per unit of normalized input; on a nonuniform grid the widest interval's width.
+    let slope =
+        2.0 * line_density_bound_a_per_m(measure) + a * measure.widest_interval_a_per_m() as f64;
     let h_max = h_a_per_m
         .abs()
         .max(measure.h_min_a_per_m().abs() as f64)

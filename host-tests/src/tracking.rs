@@ -62,6 +62,10 @@ pub fn relay_field(
 ) -> Result<RelayPreisach, ReferenceError> {
     let p = &params.preisach;
     let w: Vec<f64> = p.weights_a_per_m.iter().map(|&w| w as f64).collect();
+    if let Some(lines) = &p.lines_a_per_m {
+        let lines: Vec<f64> = lines.iter().map(|&h| h as f64).collect();
+        return RelayPreisach::with_lines(&w, &lines, subdivision);
+    }
     RelayPreisach::new(
         &w,
         p.h_min_a_per_m as f64,

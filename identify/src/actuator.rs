@@ -281,9 +281,20 @@ pub fn identify(
         saturation_magnetostriction: a.saturation_magnetostriction,
         saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m,
     };
-    let grid = Grid {
-        h_min: base.preisach.h_min_a_per_m,
-        h_max: base.preisach.h_max_a_per_m,
+    let grid = match &base.preisach.grid_lines_a_per_m {
+        Some(lines) => <[f64; crate::LEVELS + 1]>::try_from(lines.as_slice())
+            .map_err(|_| {
+                FitError(format!(
+                    "{base_name}: preisach.grid_lines_a_per_m: {} lines, need {}",
+                    lines.len(),
+                    crate::LEVELS + 1
+                ))
+            })
+            .and_then(|l| {
+                Grid::with_lines(l)
+                    .map_err(|e| FitError(format!("{base_name}: preisach.grid_lines_a_per_m: {e}")))
+            })?,
+        None => Grid::uniform(base.preisach.h_min_a_per_m, base.preisach.h_max_a_per_m),
     };
     let zero_band_m = options.zero_band_fraction * model.stroke_m();
     let sensor_offset_m = displacement_offset_m(dataset, a.coil_factor_per_m, &grid);
@@ -385,6 +396,7 @@ pub fn identify(
         levels: crate::LEVELS,
         h_min: grid.h_min,
         h_max: grid.h_max,
+        grid_lines: grid.lines.map(|l| l.to_vec()),
         weights: result.weights.clone(),
         offset: 0.0,
         slope: 0.0,

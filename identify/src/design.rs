@@ -16,22 +16,79 @@ use crate::cells::fractions;
 use crate::memory::{InitialState, Memory, Piece};
 use crate::{CELL_COUNT, LEVELS};
 
-/// The Preisach grid: `LEVELS` equal intervals of `[h_min, h_max]` (input units).
+/// The Preisach grid: `LEVELS` intervals of `[h_min, h_max]` (input units), equal or between
+/// given lines. Inside interval `k` the normalized input runs affinely from `k` to `k + 1`, so a
+/// cell's density is uniform in the input and the regressors ([`crate::cells`]) are those of the
+/// uniform grid in the normalized input.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Grid {
     /// Bottom of the input range.
     pub h_min: f64,
     /// Top of the input range.
     pub h_max: f64,
+    /// The `LEVELS + 1` grid lines (`lines[0] = h_min`, `lines[LEVELS] = h_max`, strictly
+    /// increasing); `None`: equal intervals.
+    pub lines: Option<[f64; LEVELS + 1]>,
 }
 
 impl Grid {
-    /// Normalized input `(u - h_min) / Δ` (not clamped).
-    pub fn normalize(&self, u: f64) -> f64 {
-        (u - self.h_min) / self.cell_width()
+    /// `LEVELS` equal intervals of `[h_min, h_max]`.
+    pub fn uniform(h_min: f64, h_max: f64) -> Self {
+        Grid {
+            h_min,
+            h_max,
+            lines: None,
+        }
     }
 
-    /// Δ, the width of one interval.
+    /// A grid between the given lines (checked: finite, strictly increasing).
+    pub fn with_lines(lines: [f64; LEVELS + 1]) -> Result<Self, String> {
+        if lines.iter().any(|h| !h.is_finite()) || lines.windows(2).any(|w| w[0] >= w[1]) {
+            return Err(format!(
+                "grid lines must be finite and increase strictly, got {lines:?}"
+            ));
+        }
+        Ok(Grid {
+            h_min: lines[0],
+            h_max: lines[LEVELS],
+            lines: Some(lines),
+        })
+    }
+
+    /// The grid lines (equally spaced when none were given).
+    pub fn lines(&self) -> [f64; LEVELS + 1] {
+        match self.lines {
+            Some(lines) => lines,
+            None => std::array::from_fn(|k| self.h_min + k as f64 * self.cell_width()),
+        }
+    }
+
+    /// Normalized input: `(u - h_min) / Δ` on equal intervals, else interval `k` mapped affinely
+    /// onto `[k, k + 1]` (the end intervals continued outward; not clamped).
+    pub fn normalize(&self, u: f64) -> f64 {
+        match &self.lines {
+            None => (u - self.h_min) / self.cell_width(),
+            Some(lines) => {
+                let k = lines[1..LEVELS]
+                    .partition_point(|&line| line <= u)
+                    .min(LEVELS - 1);
+                k as f64 + (u - lines[k]) / (lines[k + 1] - lines[k])
+            }
+        }
+    }
+
+    /// The input as the affine/reversible part sees it: the input itself on equal intervals,
+    /// `h_min + Δ·x` (the normalized input `x` mapped back with the mean width) otherwise — a
+    /// monotone piecewise-linear function of the input with a kink at every line, the regressor
+    /// the fit's affine column uses (`x / L − ½`).
+    pub fn equivalent_input(&self, u: f64, x: f64) -> f64 {
+        match self.lines {
+            None => u,
+            Some(_) => self.h_min + self.cell_width() * x,
+        }
+    }
+
+    /// Δ, the mean width of an interval (the width of every interval on equal intervals).
     pub fn cell_width(&self) -> f64 {
         (self.h_max - self.h_min) / LEVELS as f64
     }
@@ -40,10 +97,7 @@ impl Grid {
     /// side, so that the extreme samples do not sit on the grid edge.
     pub fn around(lo: f64, hi: f64, margin: f64) -> Self {
         let pad = (hi - lo) * margin;
-        Grid {
-            h_min: lo - pad,
-            h_max: hi + pad,
-        }
+        Grid::uniform(lo - pad, hi + pad)
     }
 }
 

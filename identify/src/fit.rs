@@ -78,7 +78,8 @@ pub struct FitOptions {
     pub smoothness: f64,
     /// λ_r, ridge weight toward the prior.
     pub ridge: f64,
-    /// Fit the affine/reversible part `offset + slope · input` jointly.
+    /// Fit the affine/reversible part `offset + slope · ĥ(input)` jointly (`ĥ`: see
+    /// [`crate::design::Grid::equivalent_input`]; the input itself on equal intervals).
     pub affine: bool,
     /// Treatment of unexcited cells.
     pub unexcited: Unexcited,

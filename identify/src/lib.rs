@@ -26,7 +26,8 @@
 //!   ξ, f0) → the full `ActuatorParams` JSON with provenance. Without dynamic experiments R_eddy,
 //!   ξ and f0 are copied from a base parameter file and the provenance says so.
 //!
-//! Grid conventions are the core's (`magctl::preisach`): 25 equal intervals of `[h_min, h_max]`,
+//! Grid conventions are the core's (`magctl::preisach`): 25 intervals of `[h_min, h_max]` (equal, or
+//! between chosen lines: [`lines`]),
 //! cell `(i, j)` (β in interval `i`, α in interval `j`, `i <= j`), alpha-major index
 //! `j (j + 1) / 2 + i`, diagonal cells are half-squares, weights are cell masses.
 
@@ -41,6 +42,7 @@ pub mod excite;
 pub mod experiments;
 pub mod fit;
 pub mod golden;
+pub mod lines;
 pub mod magnetization;
 pub mod memory;
 pub mod model;

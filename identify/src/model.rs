@@ -1,8 +1,11 @@
 //! A fitted generic Preisach model (`maglab preisach-fit` writes it as JSON, `preisach-predict`
 //! reads it), its prediction and the error metric.
 //!
-//! `output = Σ_k w_k (2 f_k - 1) + offset + slope · input` on the grid `[h_min, h_max]` with
-//! [`crate::LEVELS`] intervals; `f_k` from [`crate::cells`].
+//! `output = Σ_k w_k (2 f_k - 1) + offset + slope · ĥ(input)` on the grid `[h_min, h_max]` with
+//! [`crate::LEVELS`] intervals; `f_k` from [`crate::cells`]; `ĥ` is the input itself on equal
+//! intervals and the input carried through the grid's piecewise-affine map onto equal intervals
+//! otherwise ([`Grid::equivalent_input`]: the reversible part is then monotone piecewise linear,
+//! steeper where the grid is finer — where the loops are steep).
 
 use crate::design::{run_experiment, Grid};
 use crate::memory::InitialState;
@@ -29,6 +32,9 @@ pub struct PreisachModel {
     pub h_min: f64,
     /// Top of the input range.
     pub h_max: f64,
+    /// The `levels + 1` grid lines (input units) when the intervals are not equal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid_lines: Option<Vec<f64>>,
     /// Cell masses (output units), alpha-major.
     pub weights: Vec<f64>,
     /// Affine offset (output units).
@@ -44,17 +50,26 @@ pub struct PreisachModel {
 impl PreisachModel {
     /// The grid.
     pub fn grid(&self) -> Grid {
-        Grid {
-            h_min: self.h_min,
-            h_max: self.h_max,
+        match self
+            .grid_lines
+            .as_deref()
+            .and_then(|l| <[f64; crate::LEVELS + 1]>::try_from(l).ok())
+        {
+            Some(lines) => Grid::with_lines(lines).unwrap_or(Grid::uniform(self.h_min, self.h_max)),
+            None => Grid::uniform(self.h_min, self.h_max),
         }
     }
 
     /// Predicts the output for an input sequence from `initial`.
     pub fn predict(&self, input: &[f64], initial: InitialState) -> Vec<f64> {
+        let grid = self.grid();
         let mut out = Vec::with_capacity(input.len());
-        run_experiment(&self.grid(), input, initial, |t, _, f| {
-            out.push(crate::cells::output(f, &self.weights) + self.offset + self.slope * input[t]);
+        run_experiment(&grid, input, initial, |t, x, f| {
+            out.push(
+                crate::cells::output(f, &self.weights)
+                    + self.offset
+                    + self.slope * grid.equivalent_input(input[t], x),
+            );
         });
         out
     }
@@ -69,6 +84,7 @@ impl PreisachModel {
             levels: crate::LEVELS,
             h_min: grid.h_min,
             h_max: grid.h_max,
+            grid_lines: grid.lines.map(|l| l.to_vec()),
             weights: weights.to_vec(),
             offset: 0.0,
             slope: 0.0,
@@ -104,6 +120,28 @@ impl PreisachModel {
                 "{name}: fields `h_min`/`h_max`: need finite h_min < h_max, got [{}, {}]",
                 self.h_min, self.h_max
             ));
+        }
+        if let Some(lines) = &self.grid_lines {
+            if lines.len() != crate::LEVELS + 1 {
+                return Err(format!(
+                    "{name}: field `grid_lines`: {} lines needed, got {}",
+                    crate::LEVELS + 1,
+                    lines.len()
+                ));
+            }
+            for (k, h) in lines.iter().enumerate() {
+                if !h.is_finite() || (k > 0 && *h <= lines[k - 1]) {
+                    return Err(format!(
+                        "{name}: field `grid_lines[{k}]`: lines must be finite and increase strictly, got {h}"
+                    ));
+                }
+            }
+            if lines.first() != Some(&self.h_min) || lines.last() != Some(&self.h_max) {
+                return Err(format!(
+                    "{name}: field `grid_lines`: the first and last lines must be h_min and h_max ({} and {})",
+                    self.h_min, self.h_max
+                ));
+            }
         }
         if self.weights.len() != CELL_COUNT {
             return Err(format!(
@@ -173,13 +211,11 @@ pub fn fit_table(
     range: Option<(f64, f64)>,
     margin: f64,
     initial: InitialState,
+    lines: crate::lines::LineChoice,
     options: &crate::fit::FitOptions,
 ) -> Result<(PreisachModel, crate::fit::FitResult), crate::fit::FitError> {
-    let grid = match range {
-        Some((lo, hi)) => Grid {
-            h_min: lo,
-            h_max: hi,
-        },
+    let range_grid = match range {
+        Some((lo, hi)) => Grid::uniform(lo, hi),
         None => {
             let (lo, hi) = table
                 .series
@@ -210,6 +246,15 @@ pub fn fit_table(
             weights: None,
         })
         .collect();
+    let (lines, validation) = match lines {
+        // (the choice made is recorded in the provenance's `grid_lines`)
+        crate::lines::LineChoice::Auto => {
+            let (choice, scores) = validate_lines(&range_grid, &experiments, options)?;
+            (choice, Some(scores))
+        }
+        fixed => (fixed, None),
+    };
+    let grid = crate::lines::choose_grid(range_grid.h_min, range_grid.h_max, lines, &experiments);
     let result = crate::fit::fit(&grid, &experiments, None, options)?;
     let provenance = serde_json::json!({
         "source": "maglab preisach-fit",
@@ -220,6 +265,10 @@ pub fn fit_table(
         "row_filter": spec.filter.describe(),
         "group_column": spec.group,
         "range_margin": if range.is_some() { None } else { Some(margin) },
+        "grid_lines": lines.name(),
+        "grid_lines_validation": validation.as_ref().map(|scores| scores.iter().map(|(c, rms)| {
+            serde_json::json!({"lines": c.name(), "held_back_rms": rms})
+        }).collect::<Vec<_>>()),
         "options": {
             "smoothness": options.smoothness,
             "ridge": options.ridge,
@@ -249,6 +298,7 @@ pub fn fit_table(
         levels: crate::LEVELS,
         h_min: grid.h_min,
         h_max: grid.h_max,
+        grid_lines: grid.lines.map(|l| l.to_vec()),
         weights: result.weights.clone(),
         offset: result.offset,
         slope: result.slope,
@@ -256,6 +306,78 @@ pub fn fit_table(
         provenance,
     };
     Ok((model, result))
+}
+
+/// The line choice of [`crate::lines::LineChoice::Auto`]: uniform and equal-output lines, each
+/// fitted on the training part of every validation fold and scored (RMS, output units) on its
+/// held-back part; the lower pooled RMS wins (uniform on a tie or when there is nothing to
+/// validate on). Returns the choice and every candidate's score.
+pub fn validate_lines(
+    range: &Grid,
+    experiments: &[crate::design::Experiment<'_>],
+    options: &crate::fit::FitOptions,
+) -> Result<
+    (
+        crate::lines::LineChoice,
+        Vec<(crate::lines::LineChoice, f64)>,
+    ),
+    crate::fit::FitError,
+> {
+    use crate::lines::{choose_grid, validation_folds, LineChoice};
+    let selected: Vec<&[bool]> = experiments.iter().map(|e| e.selected).collect();
+    let folds = validation_folds(&selected);
+    if folds.is_empty() {
+        return Ok((LineChoice::Uniform, Vec::new()));
+    }
+    let mut scores = Vec::new();
+    for candidate in [LineChoice::Uniform, LineChoice::EqualOutput] {
+        let (mut sum_sq, mut count) = (0.0, 0usize);
+        for (fit_masks, predict_masks) in &folds {
+            let training: Vec<crate::design::Experiment<'_>> = experiments
+                .iter()
+                .zip(fit_masks)
+                .map(|(e, mask)| crate::design::Experiment {
+                    selected: mask,
+                    ..*e
+                })
+                .collect();
+            let grid = choose_grid(range.h_min, range.h_max, candidate, &training);
+            let result = match crate::fit::fit(&grid, &training, None, options) {
+                Ok(r) => r,
+                // A fold whose training rows excite nothing scores as unusable for every
+                // candidate alike: skip it.
+                Err(_) => continue,
+            };
+            let mut model =
+                PreisachModel::from_weights(grid, &result.weights, InitialState::Periodic);
+            model.offset = result.offset;
+            model.slope = result.slope;
+            for (e, mask) in experiments.iter().zip(predict_masks) {
+                if !mask.iter().any(|&m| m) {
+                    continue;
+                }
+                let predicted = model.predict(e.input, e.initial);
+                for ((&p, &y), &m) in predicted.iter().zip(e.output).zip(mask) {
+                    if m {
+                        sum_sq += (p - y) * (p - y);
+                        count += 1;
+                    }
+                }
+            }
+        }
+        let rms = if count > 0 {
+            (sum_sq / count as f64).sqrt()
+        } else {
+            f64::INFINITY
+        };
+        scores.push((candidate, rms));
+    }
+    let best = scores
+        .iter()
+        .filter(|s| s.1.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(LineChoice::Uniform, |s| s.0);
+    Ok((best, scores))
 }
 
 /// Predictions of `model` for every experiment of `table` (from the model's initial state) and

@@ -37,10 +37,7 @@ fn forc_excitation_excites_and_determines_every_cell() {
         .collect();
     let zeros = vec![0.0; h.len()];
     let all = vec![true; h.len()];
-    let grid = Grid {
-        h_min: p.preisach.h_min_a_per_m,
-        h_max: p.preisach.h_max_a_per_m,
-    };
+    let grid = Grid::uniform(p.preisach.h_min_a_per_m, p.preisach.h_max_a_per_m);
     let design = Design::build(
         &grid,
         &[Experiment {

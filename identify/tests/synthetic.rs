@@ -75,7 +75,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
         .map(|&v| reference.apply_a_per_m(&mut state, v) + noise.sample(&mut rng))
         .collect();
     let selected = vec![true; h.len()];
-    let grid = Grid { h_min, h_max };
+    let grid = Grid::uniform(h_min, h_max);
     let result = fit(
         &grid,
         &[Experiment {

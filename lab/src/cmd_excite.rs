@@ -62,10 +62,7 @@ pub fn run(args: &Args) -> Result<()> {
     let excitation = forc_excitation(&options).map_err(|e| anyhow!(e))?;
     let c0 = params.actuator.coil_factor_per_m;
     let h: Vec<f64> = excitation.current_a.iter().map(|i| c0 * i).collect();
-    let grid = Grid {
-        h_min: options.h_min_a_per_m,
-        h_max: options.h_max_a_per_m,
-    };
+    let grid = Grid::uniform(options.h_min_a_per_m, options.h_max_a_per_m);
     let zeros = vec![0.0; h.len()];
     let all = vec![true; h.len()];
     let design = Design::build(

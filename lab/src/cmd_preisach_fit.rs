@@ -16,6 +16,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
 use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter, Table};
 use maglab_identify::fit::{FitOptions, Unexcited};
+use maglab_identify::lines::LineChoice;
 use maglab_identify::memory::InitialState;
 use maglab_identify::model::{fit_table, predict_table, PreisachModel, DEFAULT_RANGE_MARGIN};
 use std::path::{Path, PathBuf};
@@ -45,6 +46,12 @@ pub struct FitArgs {
     /// Margin added to the data range on each side, fraction of the range.
     #[arg(long, default_value_t = DEFAULT_RANGE_MARGIN)]
     margin: f64,
+    /// Where the 24 interior grid lines go: equal-output (each interval carries the same share of
+    /// the output change the fit rows show: narrow where the loops are steep), uniform, or auto
+    /// (whichever predicts held-back fit rows better: leave one experiment out, or alternate
+    /// blocks of a single experiment's fit rows; the scores are printed).
+    #[arg(long, default_value = "auto")]
+    grid_lines: String,
     /// Initial memory of each experiment: auto, negative-saturation, positive-saturation,
     /// demagnetized (around the first input), demagnetized-at-zero, periodic (the experiment is
     /// one period of a periodic steady state). `auto`: periodic when every experiment is a
@@ -162,7 +169,25 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
             anyhow!("--initial: {e}, or auto (periodic for closed loops, else demagnetized)")
         })?
     };
-    let (model, result) = fit_table(&table, &spec, range, args.margin, initial, &options)?;
+    let lines = LineChoice::parse(&args.grid_lines).map_err(|e| anyhow!("--grid-lines: {e}"))?;
+    let (model, result) = fit_table(&table, &spec, range, args.margin, initial, lines, &options)?;
+    if let Some(scores) = model.provenance["grid_lines_validation"].as_array() {
+        let text: Vec<String> = scores
+            .iter()
+            .map(|s| {
+                format!(
+                    "{} {:.4e}",
+                    s["lines"].as_str().unwrap_or("?"),
+                    s["held_back_rms"].as_f64().unwrap_or(f64::NAN)
+                )
+            })
+            .collect();
+        println!(
+            "grid lines auto: {} (RMS on held-back fit rows: {})",
+            model.provenance["grid_lines"].as_str().unwrap_or("?"),
+            text.join(", ")
+        );
+    }
     let json = model.to_json_pretty();
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;
@@ -179,10 +204,23 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         table.selected_rows()
     );
     println!(
-        "grid [{:.6e}, {:.6e}] ({} levels), initial state {}",
+        "grid [{:.6e}, {:.6e}] ({} levels, lines {}), initial state {}",
         model.h_min,
         model.h_max,
         maglab_identify::LEVELS,
+        match &model.grid_lines {
+            Some(l) => {
+                let widths: Vec<f64> = l.windows(2).map(|w| w[1] - w[0]).collect();
+                let (lo, hi) = widths
+                    .iter()
+                    .fold((f64::INFINITY, 0.0f64), |(a, b), &w| (a.min(w), b.max(w)));
+                format!(
+                    "{}: intervals {lo:.4e} to {hi:.4e}",
+                    model.provenance["grid_lines"].as_str().unwrap_or("?")
+                )
+            }
+            None => "uniform".into(),
+        },
         initial.name()
     );
     println!(

@@ -241,12 +241,7 @@ fn van_der_pol(
     core.control.sample_rate_hz = rate_hz as f32;
     core.trajectory.frequency_scale_hz = frequency_scale_hz as f32;
     core.trajectory.van_der_pol_mu = mu as f32;
-    let p = &core.preisach;
-    let measure = magctl::preisach::PreisachMeasure::new(
-        &p.weights_a_per_m,
-        p.h_min_a_per_m,
-        p.h_max_a_per_m,
-    );
+    let measure = core.preisach.measure();
     let control = magctl::inverse::ControlLoop::new(&measure, &core)
         .map_err(|e| anyhow!("Van der Pol tracking loop: {e:?}"))?;
     let kind = magctl::inverse::InverseKind::Dynamic;

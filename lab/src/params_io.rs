@@ -32,8 +32,7 @@ pub struct LoadedParams {
 impl LoadedParams {
     /// The Preisach operator's coefficients for these parameters.
     pub fn measure(&self) -> PreisachMeasure {
-        let p = &self.params.preisach;
-        PreisachMeasure::new(&p.weights_a_per_m, p.h_min_a_per_m, p.h_max_a_per_m)
+        self.params.preisach.measure()
     }
 }
 
@@ -75,6 +74,10 @@ pub fn widen(p: &ActuatorParameters) -> ActuatorParams {
     };
     file.preisach.h_min_a_per_m = p.preisach.h_min_a_per_m as f64;
     file.preisach.h_max_a_per_m = p.preisach.h_max_a_per_m as f64;
+    file.preisach.grid_lines_a_per_m = p
+        .preisach
+        .lines_a_per_m
+        .map(|lines| lines.iter().map(|&h| h as f64).collect());
     file.preisach.weights_a_per_m = p
         .preisach
         .weights_a_per_m
@@ -146,6 +149,34 @@ mod tests {
         }
         let loaded = load(Some(&default_file)).expect("the shipped default file is valid");
         assert_eq!(loaded.params, BAKED_PARAMETERS);
+    }
+
+    /// Grid lines in a file reach the core: the measure is not uniform, has the file's lines
+    /// (in f32), and the conversion back to a file keeps them.
+    #[test]
+    fn grid_lines_reach_the_core() {
+        let mut file = actuator_params::paper_defaults();
+        let lines: Vec<f64> = (0..=25)
+            .map(|k| {
+                let s = 2.0 * k as f64 / 25.0 - 1.0;
+                3.0e4 * s.signum() * s.abs().powf(1.5)
+            })
+            .collect();
+        file.preisach.grid_lines_a_per_m = Some(lines.clone());
+        file.validate("lines").expect("valid");
+        let core = to_core(&file).unwrap();
+        let measure = core.preisach.measure();
+        assert!(!measure.is_uniform());
+        for (a, b) in measure.grid_lines_a_per_m().iter().zip(&lines) {
+            assert_eq!(*a, *b as f32);
+        }
+        let loaded = LoadedParams {
+            params: core,
+            origin: "test".into(),
+            provenance: String::new(),
+            file: file.clone(),
+        };
+        assert_eq!(loaded.measure(), measure);
     }
 
     #[test]

@@ -63,6 +63,19 @@ pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
     let _ = writeln!(out, "    preisach: PreisachGrid {{");
     let _ = writeln!(out, "        h_min_a_per_m: {},", lit(p.h_min_a_per_m));
     let _ = writeln!(out, "        h_max_a_per_m: {},", lit(p.h_max_a_per_m));
+    match &p.grid_lines_a_per_m {
+        None => {
+            let _ = writeln!(out, "        lines_a_per_m: None,");
+        }
+        Some(lines) => {
+            let _ = writeln!(out, "        lines_a_per_m: Some([");
+            for chunk in lines.chunks(5) {
+                let line: Vec<String> = chunk.iter().map(|&h| lit(h)).collect();
+                let _ = writeln!(out, "            {},", line.join(", "));
+            }
+            let _ = writeln!(out, "        ]),");
+        }
+    }
     let _ = writeln!(out, "        weights_a_per_m: [");
     for chunk in p.weights_a_per_m.chunks(5) {
         let line: Vec<String> = chunk.iter().map(|&w| lit(w)).collect();

@@ -63,7 +63,8 @@ pub struct Actuator {
     pub damping_ratio: f64,
 }
 
-/// The Preisach grid: `levels` equal intervals of `[h_min, h_max]` and one mass per cell.
+/// The Preisach grid: `levels` intervals of `[h_min, h_max]` (equal, or between the given grid
+/// lines) and one mass per cell, spread uniformly over the cell.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Preisach {
@@ -73,6 +74,11 @@ pub struct Preisach {
     pub h_min_a_per_m: f64,
     /// Upper end of the input (field) range, A/m.
     pub h_max_a_per_m: f64,
+    /// The `L + 1` grid lines, A/m, strictly increasing, the first `h_min_a_per_m` and the last
+    /// `h_max_a_per_m`: narrower intervals where the loops need resolution. Absent: `L` equal
+    /// intervals.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid_lines_a_per_m: Option<Vec<f64>>,
     /// Cell masses in A/m, `L (L + 1) / 2` of them, in alpha-major order: the cell whose switch-down
     /// threshold β lies in interval `i` and switch-up threshold α in interval `j` (`i <= j`) has
     /// index `j (j + 1) / 2 + i`. The output is `M = Σ w·(±1)`, so `Σ w` is the saturation output.
@@ -593,6 +599,54 @@ impl ActuatorParams {
                     p.h_min_a_per_m, p.h_max_a_per_m
                 ),
             ));
+        }
+        if let Some(lines) = &p.grid_lines_a_per_m {
+            let field = "preisach.grid_lines_a_per_m";
+            if lines.len() != p.levels + 1 {
+                return Err(err(
+                    field,
+                    format!(
+                        "{} levels need {} grid lines, the file has {}",
+                        p.levels,
+                        p.levels + 1,
+                        lines.len()
+                    ),
+                ));
+            }
+            for (k, &h) in lines.iter().enumerate() {
+                let f = format!("{field}[{k}]");
+                check_finite(&f, h).map_err(|r| err(&f, r))?;
+                if k > 0 && h <= lines[k - 1] {
+                    return Err(err(
+                        &f,
+                        format!(
+                            "grid lines must increase strictly: {h} after {}",
+                            lines[k - 1]
+                        ),
+                    ));
+                }
+                if k > 0 && (h as f32) <= (lines[k - 1] as f32) {
+                    return Err(err(
+                        &f,
+                        format!(
+                            "{h} and {} are the same in f32 (the core's precision): the interval is empty",
+                            lines[k - 1]
+                        ),
+                    ));
+                }
+            }
+            if lines.first() != Some(&p.h_min_a_per_m) || lines.last() != Some(&p.h_max_a_per_m) {
+                return Err(err(
+                    field,
+                    format!(
+                        "the first and last lines must be preisach.h_min_a_per_m and h_max_a_per_m                          ({} and {}), got {} and {}",
+                        p.h_min_a_per_m,
+                        p.h_max_a_per_m,
+                        lines.first().copied().unwrap_or(f64::NAN),
+                        lines.last().copied().unwrap_or(f64::NAN)
+                    ),
+                ));
+            }
         }
         let implied_levels = levels_for_cells(p.weights_a_per_m.len());
         if p.levels != PREISACH_LEVELS {

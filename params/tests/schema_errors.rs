@@ -57,6 +57,9 @@ fn every_case_is_tested_here() {
             "h_min_not_below_h_max",
             "levels_inconsistent_with_weights",
             "weights_for_another_level_count",
+            "grid_lines_wrong_count",
+            "grid_lines_not_increasing",
+            "grid_lines_wrong_ends",
         ]
     );
 }
@@ -139,4 +142,49 @@ fn levels_inconsistent_with_weights() {
 #[test]
 fn weights_for_another_level_count() {
     check("weights_for_another_level_count");
+}
+
+#[test]
+fn grid_lines_wrong_count() {
+    check("grid_lines_wrong_count");
+}
+
+#[test]
+fn grid_lines_not_increasing() {
+    check("grid_lines_not_increasing");
+}
+
+#[test]
+fn grid_lines_wrong_ends() {
+    check("grid_lines_wrong_ends");
+}
+
+/// A file with grid lines parses and keeps them through the writer (the core's side:
+/// `lab/src/params_io.rs`'s tests).
+#[test]
+fn grid_lines_are_accepted_and_reach_the_core() {
+    let mut v: serde_json::Value = serde_json::from_str(&valid_text()).unwrap();
+    v["preisach"]["grid_lines_a_per_m"] = serde_json::Value::from(common::lines(26));
+    let text = serde_json::to_string(&v).unwrap();
+    let params = ActuatorParams::parse(&text, "lines.json").expect("valid grid lines");
+    let parsed = params
+        .preisach
+        .grid_lines_a_per_m
+        .clone()
+        .expect("lines kept");
+    assert_eq!(parsed.len(), 26);
+    for (a, b) in parsed.iter().zip(common::lines(26)) {
+        // (serde_json's default float parser may differ in the last bit)
+        assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "{a} vs {b}");
+    }
+    // Round trip through the writer keeps them; a file without them writes none.
+    let again = ActuatorParams::parse(&params.to_json_pretty(), "again.json").unwrap();
+    let kept = again
+        .preisach
+        .grid_lines_a_per_m
+        .expect("the writer keeps the lines");
+    for (a, b) in kept.iter().zip(&parsed) {
+        assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "{a} vs {b}");
+    }
+    assert!(!valid_text().contains("grid_lines_a_per_m"));
 }

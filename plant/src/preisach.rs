@@ -45,14 +45,19 @@ pub struct PreisachGrid {
 }
 
 impl PreisachGrid {
-    /// The grid of a parameter file: `levels` equal intervals of `[h_min, h_max]`, masses in the
-    /// schema's alpha-major order (`j (j + 1) / 2 + i`).
+    /// The grid of a parameter file: its grid lines, or `levels` equal intervals of
+    /// `[h_min, h_max]`; masses in the schema's alpha-major order (`j (j + 1) / 2 + i`).
     pub fn from_params(params: &ActuatorParams) -> Result<Self, String> {
         let p = &params.preisach;
         let l = p.levels;
-        let edges: Vec<f64> = (0..=l)
-            .map(|k| p.h_min_a_per_m + (p.h_max_a_per_m - p.h_min_a_per_m) * k as f64 / l as f64)
-            .collect();
+        let edges: Vec<f64> = match &p.grid_lines_a_per_m {
+            Some(lines) => lines.clone(),
+            None => (0..=l)
+                .map(|k| {
+                    p.h_min_a_per_m + (p.h_max_a_per_m - p.h_min_a_per_m) * k as f64 / l as f64
+                })
+                .collect(),
+        };
         Self::new(edges, &p.weights_a_per_m)
     }
 

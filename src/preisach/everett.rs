@@ -81,10 +81,20 @@ impl Quadratic {
 pub struct PreisachMeasure {
     pub(crate) h_min_a_per_m: f32,
     pub(crate) h_max_a_per_m: f32,
-    /// Δ, width of one input interval, A/m.
+    /// Δ, the mean width of an input interval (the width of every interval when the grid is
+    /// uniform), A/m.
     pub(crate) cell_width_a_per_m: f32,
     /// 1 / Δ.
     pub(crate) cells_per_a_per_m: f32,
+    /// Whether the `LEVELS` intervals are equal (then `normalize`/`denormalize` are the affine maps
+    /// through `h_min` and Δ, bit for bit those of a grid built without lines).
+    pub(crate) uniform: bool,
+    /// The `LEVELS + 1` grid lines, A/m (`lines[0] = h_min`, `lines[LEVELS] = h_max`).
+    pub(crate) lines_a_per_m: [f32; LEVELS + 1],
+    /// Width of each interval, A/m (all equal to Δ on a uniform grid).
+    pub(crate) widths_a_per_m: [f32; LEVELS],
+    /// 1 / width of each interval.
+    pub(crate) inverse_widths_per_a_per_m: [f32; LEVELS],
     /// Σ w, the saturation output, A/m.
     pub(crate) total_a_per_m: f32,
     /// Largest mass per unit normalized area over all cells (triangles count double), A/m.
@@ -105,6 +115,36 @@ impl PreisachMeasure {
         weights_a_per_m: &[f32; CELL_COUNT],
         h_min_a_per_m: f32,
         h_max_a_per_m: f32,
+    ) -> Self {
+        Self::build(weights_a_per_m, h_min_a_per_m, h_max_a_per_m, None)
+    }
+
+    /// Builds the coefficients on a grid with the given lines (`LEVELS + 1` strictly increasing
+    /// finite fields, A/m; the first and last are the range): the density is uniform in each
+    /// cell *in the field*, so in the normalized input `x` (interval `k` mapped affinely onto
+    /// `[k, k + 1]`) the cells are the unit cells of the uniform grid and every table, the
+    /// forward update and the exact inverse stay as they are; only the maps between `h` and `x`
+    /// become piecewise affine. Lines whose intervals all round to the same f32 width as Δ give exactly
+    /// [`PreisachMeasure::new`].
+    ///
+    /// The caller guarantees what `actuator-params` validates (increasing, finite).
+    pub const fn with_lines(
+        weights_a_per_m: &[f32; CELL_COUNT],
+        lines_a_per_m: &[f32; LEVELS + 1],
+    ) -> Self {
+        Self::build(
+            weights_a_per_m,
+            lines_a_per_m[0],
+            lines_a_per_m[LEVELS],
+            Some(lines_a_per_m),
+        )
+    }
+
+    const fn build(
+        weights_a_per_m: &[f32; CELL_COUNT],
+        h_min_a_per_m: f32,
+        h_max_a_per_m: f32,
+        lines: Option<&[f32; LEVELS + 1]>,
     ) -> Self {
         let mut w64 = [[0.0f64; LEVELS]; LEVELS];
         let mut w = [[0.0f32; LEVELS]; LEVELS];
@@ -174,11 +214,47 @@ impl PreisachMeasure {
             big_j += 1;
         }
         let width = (h_max_a_per_m as f64 - h_min_a_per_m as f64) / LEVELS as f64;
+        // The lines: given, or equally spaced (each interval then has width Δ exactly as f32,
+        // so `a · width[k]` equals `a · Δ` bit for bit).
+        let mut lines_a_per_m = [0.0f32; LEVELS + 1];
+        let mut widths_a_per_m = [width as f32; LEVELS];
+        let mut inverse_widths_per_a_per_m = [(1.0 / width) as f32; LEVELS];
+        let mut uniform = true;
+        let mut k = 0;
+        while k <= LEVELS {
+            lines_a_per_m[k] = match lines {
+                Some(given) => given[k],
+                None => (h_min_a_per_m as f64 + k as f64 * width) as f32,
+            };
+            k += 1;
+        }
+        lines_a_per_m[0] = h_min_a_per_m;
+        lines_a_per_m[LEVELS] = h_max_a_per_m;
+        if let Some(given) = lines {
+            let mut k = 0;
+            while k < LEVELS {
+                let w = given[k + 1] as f64 - given[k] as f64;
+                if (w as f32).to_bits() != (width as f32).to_bits() {
+                    uniform = false;
+                }
+                widths_a_per_m[k] = w as f32;
+                inverse_widths_per_a_per_m[k] = (1.0 / w) as f32;
+                k += 1;
+            }
+            if uniform {
+                widths_a_per_m = [width as f32; LEVELS];
+                inverse_widths_per_a_per_m = [(1.0 / width) as f32; LEVELS];
+            }
+        }
         PreisachMeasure {
             h_min_a_per_m,
             h_max_a_per_m,
             cell_width_a_per_m: width as f32,
             cells_per_a_per_m: (1.0 / width) as f32,
+            uniform,
+            lines_a_per_m,
+            widths_a_per_m,
+            inverse_widths_per_a_per_m,
             total_a_per_m: total as f32,
             max_density_a_per_m: max_density as f32,
             w,
@@ -194,9 +270,38 @@ impl PreisachMeasure {
     pub fn h_max_a_per_m(&self) -> f32 {
         self.h_max_a_per_m
     }
-    /// Width Δ of one grid interval, A/m.
+    /// Mean width Δ = (h_max − h_min) / 25 of a grid interval (the width of every interval on a
+    /// uniform grid), A/m.
     pub fn cell_width_a_per_m(&self) -> f32 {
         self.cell_width_a_per_m
+    }
+    /// Width of interval `k` (clamped into the grid), A/m.
+    pub fn interval_width_a_per_m(&self, k: usize) -> f32 {
+        self.widths_a_per_m[k.min(LEVELS - 1)]
+    }
+    /// The smallest interval width, A/m (Δ on a uniform grid).
+    pub fn narrowest_interval_a_per_m(&self) -> f32 {
+        let mut narrowest = self.widths_a_per_m[0];
+        for &w in self.widths_a_per_m.iter() {
+            narrowest = crate::select::min_f32(narrowest, w);
+        }
+        narrowest
+    }
+    /// The largest interval width, A/m (Δ on a uniform grid).
+    pub fn widest_interval_a_per_m(&self) -> f32 {
+        let mut widest = self.widths_a_per_m[0];
+        for &w in self.widths_a_per_m.iter() {
+            widest = crate::select::max_f32(widest, w);
+        }
+        widest
+    }
+    /// The `LEVELS + 1` grid lines, A/m.
+    pub fn grid_lines_a_per_m(&self) -> &[f32; LEVELS + 1] {
+        &self.lines_a_per_m
+    }
+    /// Whether the intervals are equal.
+    pub fn is_uniform(&self) -> bool {
+        self.uniform
     }
     /// Saturation output `Σ w`, A/m.
     pub fn saturation_a_per_m(&self) -> f32 {
@@ -220,14 +325,52 @@ impl PreisachMeasure {
     /// reject non-finite inputs before.
     #[inline]
     pub(crate) fn normalize(&self, h_a_per_m: f32) -> f32 {
-        let x = (h_a_per_m - self.h_min_a_per_m) * self.cells_per_a_per_m;
-        x.clamp(0.0, LEVELS as f32)
+        if self.uniform {
+            let x = (h_a_per_m - self.h_min_a_per_m) * self.cells_per_a_per_m;
+            return x.clamp(0.0, LEVELS as f32);
+        }
+        // Below the range, and NaN (callers reject non-finite inputs before): the bottom.
+        if h_a_per_m <= self.h_min_a_per_m || h_a_per_m.is_nan() {
+            return 0.0;
+        }
+        if h_a_per_m >= self.h_max_a_per_m {
+            return LEVELS as f32;
+        }
+        // The interval holding h: lines[k] <= h < lines[k + 1], by bisection (5 halvings).
+        let (mut lo, mut hi) = (0usize, LEVELS);
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            if h_a_per_m >= self.lines_a_per_m[mid.min(LEVELS)] {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let k = lo.min(LEVELS - 1);
+        let s = (h_a_per_m - self.lines_a_per_m[k]) * self.inverse_widths_per_a_per_m[k];
+        (k as f32 + crate::select::clamp_f32(s, 0.0, 1.0)).clamp(0.0, LEVELS as f32)
     }
 
     /// Field (A/m) at normalized input `x`.
     #[inline]
     pub(crate) fn denormalize(&self, x: f32) -> f32 {
-        self.h_min_a_per_m + x * self.cell_width_a_per_m
+        if self.uniform {
+            return self.h_min_a_per_m + x * self.cell_width_a_per_m;
+        }
+        let (k, s) = split(x);
+        self.lines_a_per_m[k.min(LEVELS - 1)] + s * self.widths_a_per_m[k.min(LEVELS - 1)]
+    }
+
+    /// Field (A/m) at normalized input `x` known to lie in interval `k` (`k <= x <= k + 1`):
+    /// [`PreisachMeasure::denormalize`] without the split (the inverse knows the piece's
+    /// interval).
+    #[inline(always)]
+    pub(crate) fn denormalize_in(&self, x: f32, k: usize) -> f32 {
+        if self.uniform {
+            return self.h_min_a_per_m + x * self.cell_width_a_per_m;
+        }
+        let k = k.min(LEVELS - 1);
+        self.lines_a_per_m[k] + (x - k as f32) * self.widths_a_per_m[k]
     }
 
     /// Everett function `T(a, b) = μ{b <= β <= α <= a}` for normalized `a, b ∈ [0, LEVELS]`

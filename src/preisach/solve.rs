@@ -131,11 +131,6 @@ impl PreisachMeasure {
         if !state.rising() {
             self.reverse(state);
         }
-        let a_cells = if PLAIN {
-            0.0
-        } else {
-            a * self.cell_width_a_per_m
-        };
         for _ in 0..(LEVELS + N + 2) {
             let m = state.last_index();
             let base = state
@@ -150,6 +145,12 @@ impl PreisachMeasure {
                 LEVELS as f32
             };
             let (big_j, s0) = split(x0);
+            // d(a·h)/dx on this interval (every interval has width Δ on a uniform grid).
+            let a_cells = if PLAIN {
+                0.0
+            } else {
+                a * self.widths_a_per_m[big_j.min(LEVELS - 1)]
+            };
             let tag = big_j as u32;
             let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, cap) {
                 Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
@@ -181,7 +182,7 @@ impl PreisachMeasure {
                         end_plus_mass: plus_b,
                     };
                 }
-                return self.solution(state, Saturation::None);
+                return self.solution_in(state, big_j);
             }
             state.x = xb;
             state.plus_mass = plus_b;
@@ -219,11 +220,6 @@ impl PreisachMeasure {
         if state.rising() {
             self.reverse(state);
         }
-        let a_cells = if PLAIN {
-            0.0
-        } else {
-            a * self.cell_width_a_per_m
-        };
         for _ in 0..(LEVELS + N + 2) {
             let m = state.last_index();
             let base = state
@@ -234,6 +230,11 @@ impl PreisachMeasure {
             let x0 = state.x;
             let floor = if m >= 3 { state.vertex_x(m - 1) } else { 0.0 };
             let (big_i, t0) = split_down(x0);
+            let a_cells = if PLAIN {
+                0.0
+            } else {
+                a * self.widths_a_per_m[big_i.min(LEVELS - 1)]
+            };
             let tag = big_i as u32 | PieceMemo::FALLING;
             let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, floor) {
                 Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
@@ -266,7 +267,7 @@ impl PreisachMeasure {
                         end_plus_mass: plus_b,
                     };
                 }
-                return self.solution(state, Saturation::None);
+                return self.solution_in(state, big_i);
             }
             state.x = xb;
             state.plus_mass = plus_b;
@@ -291,6 +292,16 @@ impl PreisachMeasure {
             }
         } else {
             self.solution(state, Saturation::Low)
+        }
+    }
+
+    /// The solution on the piece of interval `k` (not saturated).
+    #[inline(always)]
+    fn solution_in<const N: usize>(&self, state: &PreisachState<N>, k: usize) -> Solution {
+        Solution {
+            h_a_per_m: self.denormalize_in(state.x, k),
+            m_a_per_m: self.output_a_per_m(state),
+            saturation: Saturation::None,
         }
     }
 

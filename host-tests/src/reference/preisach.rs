@@ -82,8 +82,8 @@ pub struct RelayPreisach {
     subdivision: usize,
     h_min_a_per_m: f64,
     h_max_a_per_m: f64,
-    /// Δ = (h_max - h_min) / L, A/m.
-    cell_width_a_per_m: f64,
+    /// The L + 1 grid lines, A/m (equally spaced unless built by [`RelayPreisach::with_lines`]).
+    lines_a_per_m: Vec<f64>,
     /// Cell masses, alpha-major (as given).
     weights_a_per_m: Vec<f64>,
     /// Σ w, A/m.
@@ -129,6 +129,53 @@ impl RelayPreisach {
         weights_a_per_m: &[f64],
         h_min_a_per_m: f64,
         h_max_a_per_m: f64,
+        subdivision: usize,
+    ) -> Result<Self, ReferenceError> {
+        let width = (h_max_a_per_m - h_min_a_per_m) / LEVELS as f64;
+        let lines: Vec<f64> = (0..=LEVELS)
+            .map(|k| h_min_a_per_m + k as f64 * width)
+            .collect();
+        Self::build(
+            weights_a_per_m,
+            h_min_a_per_m,
+            h_max_a_per_m,
+            lines,
+            subdivision,
+        )
+    }
+
+    /// The same on a grid with the given `L + 1` strictly increasing lines (A/m): cell `(i, j)`
+    /// spans `[lines[i], lines[i+1]] × [lines[j], lines[j+1]]` in the field and its relays sit at
+    /// the same relative positions inside it (its density is uniform in the field).
+    pub fn with_lines(
+        weights_a_per_m: &[f64],
+        lines_a_per_m: &[f64],
+        subdivision: usize,
+    ) -> Result<Self, ReferenceError> {
+        if lines_a_per_m.len() != LEVELS + 1
+            || lines_a_per_m.windows(2).any(|w| w[0] >= w[1])
+            || lines_a_per_m.iter().any(|h| !h.is_finite())
+        {
+            return Err(ReferenceError(format!(
+                "lines_a_per_m: need {} finite, strictly increasing grid lines, got {:?}",
+                LEVELS + 1,
+                lines_a_per_m
+            )));
+        }
+        Self::build(
+            weights_a_per_m,
+            lines_a_per_m[0],
+            lines_a_per_m[LEVELS],
+            lines_a_per_m.to_vec(),
+            subdivision,
+        )
+    }
+
+    fn build(
+        weights_a_per_m: &[f64],
+        h_min_a_per_m: f64,
+        h_max_a_per_m: f64,
+        lines_a_per_m: Vec<f64>,
         subdivision: usize,
     ) -> Result<Self, ReferenceError> {
         if weights_a_per_m.len() != CELL_COUNT {
@@ -198,7 +245,7 @@ impl RelayPreisach {
             subdivision,
             h_min_a_per_m,
             h_max_a_per_m,
-            cell_width_a_per_m: (h_max_a_per_m - h_min_a_per_m) / LEVELS as f64,
+            lines_a_per_m,
             weights_a_per_m: weights_a_per_m.to_vec(),
             total_a_per_m: weights_a_per_m.iter().sum(),
             relay_mass_a_per_m: mass,
@@ -212,6 +259,10 @@ impl RelayPreisach {
     pub fn from_baked(subdivision: usize) -> Result<Self, ReferenceError> {
         let p = magctl::params::BAKED_PARAMETERS.preisach;
         let w: Vec<f64> = p.weights_a_per_m.iter().map(|&w| w as f64).collect();
+        if let Some(lines) = p.lines_a_per_m {
+            let lines: Vec<f64> = lines.iter().map(|&h| h as f64).collect();
+            return Self::with_lines(&w, &lines, subdivision);
+        }
         Self::new(
             &w,
             p.h_min_a_per_m as f64,
@@ -252,10 +303,23 @@ impl RelayPreisach {
         max
     }
 
-    /// Normalized input of field `h` (A/m): `(h - h_min) / Δ`, not clamped (relays only exist in
-    /// `[0, L]`, so inputs beyond simply saturate).
+    /// Normalized input of field `h` (A/m): interval `k` mapped affinely onto `[k, k + 1]`
+    /// (`(h - h_min) / Δ` on a uniform grid), continued with the end intervals' widths beyond the
+    /// range, not clamped (relays only exist in `[0, L]`, so inputs beyond simply saturate).
     pub fn normalize(&self, h_a_per_m: f64) -> f64 {
-        (h_a_per_m - self.h_min_a_per_m) / self.cell_width_a_per_m
+        let lines = &self.lines_a_per_m;
+        // The interval k with lines[k] <= h < lines[k + 1], the end intervals continued outward.
+        let k = lines[1..LEVELS]
+            .partition_point(|&line| line <= h_a_per_m)
+            .min(LEVELS - 1);
+        k as f64 + (h_a_per_m - lines[k]) / (lines[k + 1] - lines[k])
+    }
+
+    /// Field (A/m) at normalized input `x`, the inverse of [`RelayPreisach::normalize`].
+    pub fn field_of(&self, x: f64) -> f64 {
+        let lines = &self.lines_a_per_m;
+        let k = (x.floor().max(0.0) as usize).min(LEVELS - 1);
+        lines[k] + (x - k as f64) * (lines[k + 1] - lines[k])
     }
 
     /// All relays at -1, input at `h_min` (normalized 0).
@@ -394,7 +458,7 @@ impl RelayPreisach {
     /// the output taken as `r - a·h_t` (the jump is traversed partially), which keeps `a·h + M`
     /// continuous in `r`. Returns `(h, M)` with `a·h + M = r`.
     pub fn preview_solve(&self, state: &RelayState, a: f64, r_a_per_m: f64) -> (f64, f64) {
-        let h_of = |x: f64| self.h_min_a_per_m + x * self.cell_width_a_per_m;
+        let h_of = |x: f64| self.field_of(x);
         let h0 = h_of(state.x);
         let mut m = self.output_a_per_m(state);
         if a * h0 + m == r_a_per_m {

@@ -174,5 +174,41 @@ pub fn cases() -> Vec<Case> {
                     .truncate(300);
             }),
         },
+        Case {
+            name: "grid_lines_wrong_count",
+            field: "preisach.grid_lines_a_per_m",
+            reason_contains: "25 levels need 26 grid lines, the file has 25",
+            text: edit(|v| v["preisach"]["grid_lines_a_per_m"] = Value::from(lines(25))),
+        },
+        Case {
+            name: "grid_lines_not_increasing",
+            field: "preisach.grid_lines_a_per_m[7]",
+            reason_contains: "grid lines must increase strictly",
+            text: edit(|v| {
+                let mut l = lines(26);
+                l[7] = l[6];
+                v["preisach"]["grid_lines_a_per_m"] = Value::from(l);
+            }),
+        },
+        Case {
+            name: "grid_lines_wrong_ends",
+            field: "preisach.grid_lines_a_per_m",
+            reason_contains: "the first and last lines must be preisach.h_min_a_per_m",
+            text: edit(|v| {
+                let mut l = lines(26);
+                l[25] = 2.9e4;
+                v["preisach"]["grid_lines_a_per_m"] = Value::from(l);
+            }),
+        },
     ]
+}
+
+/// `n` grid lines over the default range [-3e4, 3e4], denser in the middle.
+pub fn lines(n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|k| {
+            let s = 2.0 * k as f64 / (n - 1) as f64 - 1.0;
+            3.0e4 * s.signum() * s.abs().powf(1.5)
+        })
+        .collect()
 }

@@ -72,4 +72,18 @@ impl CmsdkUart {
         }
         Ok(())
     }
+
+    /// Waits (at most `max_polls` status reads) until the last byte written has left the
+    /// transmit buffer: QEMU keeps TX-full set while its character backend has not taken the
+    /// byte, and a semihosting exit before that loses it.
+    pub fn flush(&mut self, max_polls: u32) -> Result<(), UartTimeout> {
+        let mut polls = 0u32;
+        while unsafe { read_volatile(self.reg(STATE)) } & STATE_TX_FULL != 0 {
+            polls += 1;
+            if polls >= max_polls {
+                return Err(UartTimeout);
+            }
+        }
+        Ok(())
+    }
 }
