@@ -78,10 +78,11 @@ pub fn preisach_fit_input(data: &[u8]) {
     let options = String::from_utf8_lossy(&data[..split]);
     let mut fields = options.split('|');
     let mut next = || fields.next().unwrap_or("").to_string();
-    let (input, output, group, filter_text, initial, unexcited) =
-        (next(), next(), next(), next(), next(), next());
+    let (input, output, group, filter_text, initial, unexcited, lines) =
+        (next(), next(), next(), next(), next(), next(), next());
     let _ = maglab_identify::memory::InitialState::parse(&initial);
     let _ = maglab_identify::fit::Unexcited::parse(&unexcited);
+    let _ = maglab_identify::lines::LineChoice::parse(&lines);
     let filter = if filter_text.is_empty() {
         RowFilter::All
     } else {
@@ -99,6 +100,43 @@ pub fn preisach_fit_input(data: &[u8]) {
     let path = scratch("fit.csv", data.get(split + 1..).unwrap_or(&[]));
     if let Ok(table) = read_columns(&path, &spec) {
         assert!(table.selected_rows() <= table.rows());
+        // The line chooser on whatever the file holds: the grid over the data range (as
+        // `preisach-fit` builds it) has finite, strictly increasing lines from h_min to h_max.
+        let (lo, hi) = table
+            .series
+            .iter()
+            .flat_map(|s| s.input.iter())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
+                (a.min(u), b.max(u))
+            });
+        if lo.is_finite() && hi.is_finite() && lo < hi && (hi - lo).is_finite() {
+            let range = maglab_identify::design::Grid::around(lo, hi, 0.02);
+            let experiments: Vec<maglab_identify::design::Experiment<'_>> = table
+                .series
+                .iter()
+                .map(|s| maglab_identify::design::Experiment {
+                    label: &s.label,
+                    input: &s.input,
+                    output: &s.output,
+                    selected: &s.selected,
+                    initial: maglab_identify::memory::InitialState::Periodic,
+                    weights: None,
+                })
+                .collect();
+            let grid = maglab_identify::lines::choose_grid(
+                range.h_min,
+                range.h_max,
+                maglab_identify::lines::LineChoice::EqualOutput,
+                &experiments,
+            );
+            let l = grid.lines();
+            assert!(l.iter().all(|h| h.is_finite()), "{l:?}");
+            assert!(
+                l.windows(2).all(|w| w[0] < w[1]) || grid.lines.is_none(),
+                "{l:?}"
+            );
+            assert_eq!((l[0], l[l.len() - 1]), (range.h_min, range.h_max));
+        }
     }
 }
 
@@ -123,9 +161,56 @@ impl Floats<'_> {
     }
 }
 
-/// Arbitrary f32 inputs to the core's update paths; checks they stay total and bounded.
+/// Grid lines over the baked range from 25 fuzz floats (interval widths `|x|` limited to
+/// `[1e-3, 1e3]`, non-finite as 1, scaled to the range), or `None` when f32 rounding leaves two
+/// lines equal (the parameter file's validation rejects that case).
+fn fuzzed_lines(f: &mut Floats<'_>) -> Option<[f32; magctl::preisach::LEVELS + 1]> {
+    use magctl::preisach::LEVELS;
+    let p = &BAKED_PARAMETERS.preisach;
+    let widths: Vec<f64> = (0..LEVELS)
+        .map(|_| {
+            let x = f.next() as f64;
+            if x.is_finite() {
+                x.abs().clamp(1e-3, 1e3)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let total: f64 = widths.iter().sum();
+    let (lo, hi) = (p.h_min_a_per_m as f64, p.h_max_a_per_m as f64);
+    let mut lines = [0.0f32; LEVELS + 1];
+    let mut acc = 0.0;
+    for k in 0..=LEVELS {
+        lines[k] = (lo + (hi - lo) * acc / total) as f32;
+        if k < LEVELS {
+            acc += widths[k];
+        }
+    }
+    lines[0] = p.h_min_a_per_m;
+    lines[LEVELS] = p.h_max_a_per_m;
+    lines.windows(2).all(|w| w[0] < w[1]).then_some(lines)
+}
+
+/// Arbitrary f32 inputs to the core's update paths; checks they stay total and bounded. An input
+/// whose first byte is odd runs on a grid with fuzzed lines (issue 13) instead of the baked one.
 pub fn core_numerics(data: &[u8]) {
-    let m = &BAKED_MEASURE;
+    let lined;
+    let m = if data.first().is_some_and(|b| b & 1 == 1) {
+        let mut f = Floats { data, at: 0 };
+        match fuzzed_lines(&mut f) {
+            Some(lines) => {
+                lined = magctl::preisach::PreisachMeasure::with_lines(
+                    &BAKED_PARAMETERS.preisach.weights_a_per_m,
+                    &lines,
+                );
+                &lined
+            }
+            None => &BAKED_MEASURE,
+        }
+    } else {
+        &BAKED_MEASURE
+    };
     let ms = m.saturation_a_per_m();
     let bound = ms * (1.0 + 1e-5) + 1.0;
     let mut f = Floats { data, at: 0 };

@@ -59,7 +59,14 @@ impl Grid {
     pub fn lines(&self) -> [f64; LEVELS + 1] {
         match self.lines {
             Some(lines) => lines,
-            None => std::array::from_fn(|k| self.h_min + k as f64 * self.cell_width()),
+            None => std::array::from_fn(|k| {
+                // (the ends exactly, not through the rounded width)
+                if k == LEVELS {
+                    self.h_max
+                } else {
+                    self.h_min + k as f64 * self.cell_width()
+                }
+            }),
         }
     }
 
