@@ -60,6 +60,23 @@ pub struct PreisachGrid {
     pub weights_a_per_m: [f32; CELL_COUNT],
 }
 
+impl PreisachGrid {
+    /// The Preisach measure (operator coefficients) of this grid: on its lines, or on equal
+    /// intervals (a `const fn`: the baked measure is computed at compile time).
+    pub const fn measure(&self) -> crate::preisach::PreisachMeasure {
+        match &self.lines_a_per_m {
+            Some(lines) => {
+                crate::preisach::PreisachMeasure::with_lines(&self.weights_a_per_m, lines)
+            }
+            None => crate::preisach::PreisachMeasure::new(
+                &self.weights_a_per_m,
+                self.h_min_a_per_m,
+                self.h_max_a_per_m,
+            ),
+        }
+    }
+}
+
 /// Control-loop settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Control {
@@ -167,18 +184,7 @@ pub struct ActuatorParameters {
 include!(concat!(env!("OUT_DIR"), "/baked_params.rs"));
 
 /// The Preisach measure of the baked parameters, its tables computed at compile time.
-pub static BAKED_MEASURE: crate::preisach::PreisachMeasure =
-    match &BAKED_PARAMETERS.preisach.lines_a_per_m {
-        Some(lines) => crate::preisach::PreisachMeasure::with_lines(
-            &BAKED_PARAMETERS.preisach.weights_a_per_m,
-            lines,
-        ),
-        None => crate::preisach::PreisachMeasure::new(
-            &BAKED_PARAMETERS.preisach.weights_a_per_m,
-            BAKED_PARAMETERS.preisach.h_min_a_per_m,
-            BAKED_PARAMETERS.preisach.h_max_a_per_m,
-        ),
-    };
+pub static BAKED_MEASURE: crate::preisach::PreisachMeasure = BAKED_PARAMETERS.preisach.measure();
 
 #[cfg(feature = "host")]
 mod from_file {
@@ -280,20 +286,6 @@ mod from_file {
                 lines_a_per_m,
                 weights_a_per_m,
             })
-        }
-
-        /// The Preisach measure (operator coefficients) of this grid.
-        pub fn measure(&self) -> crate::preisach::PreisachMeasure {
-            match &self.lines_a_per_m {
-                Some(lines) => {
-                    crate::preisach::PreisachMeasure::with_lines(&self.weights_a_per_m, lines)
-                }
-                None => crate::preisach::PreisachMeasure::new(
-                    &self.weights_a_per_m,
-                    self.h_min_a_per_m,
-                    self.h_max_a_per_m,
-                ),
-            }
         }
     }
 

@@ -102,13 +102,7 @@ pub fn preisach_fit_input(data: &[u8]) {
         assert!(table.selected_rows() <= table.rows());
         // The line chooser on whatever the file holds: the grid over the data range (as
         // `preisach-fit` builds it) has finite, strictly increasing lines from h_min to h_max.
-        let (lo, hi) = table
-            .series
-            .iter()
-            .flat_map(|s| s.input.iter())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
-                (a.min(u), b.max(u))
-            });
+        let (lo, hi) = table.input_range();
         if lo.is_finite() && hi.is_finite() && lo < hi && (hi - lo).is_finite() {
             let range = maglab_identify::design::Grid::around(lo, hi, 0.02);
             let experiments: Vec<maglab_identify::design::Experiment<'_>> = table

@@ -282,18 +282,8 @@ pub fn identify(
         saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m,
     };
     let grid = match &base.preisach.grid_lines_a_per_m {
-        Some(lines) => <[f64; crate::LEVELS + 1]>::try_from(lines.as_slice())
-            .map_err(|_| {
-                FitError(format!(
-                    "{base_name}: preisach.grid_lines_a_per_m: {} lines, need {}",
-                    lines.len(),
-                    crate::LEVELS + 1
-                ))
-            })
-            .and_then(|l| {
-                Grid::with_lines(l)
-                    .map_err(|e| FitError(format!("{base_name}: preisach.grid_lines_a_per_m: {e}")))
-            })?,
+        Some(lines) => Grid::from_line_slice(lines)
+            .map_err(|e| FitError(format!("{base_name}: preisach.grid_lines_a_per_m: {e}")))?,
         None => Grid::uniform(base.preisach.h_min_a_per_m, base.preisach.h_max_a_per_m),
     };
     let zero_band_m = options.zero_band_fraction * model.stroke_m();

@@ -115,6 +115,19 @@ pub struct Series {
     pub selected: Vec<bool>,
 }
 
+impl Table {
+    /// The smallest and largest input over every row of every experiment (selected or not);
+    /// `(∞, −∞)` for a table without rows.
+    pub fn input_range(&self) -> (f64, f64) {
+        self.series
+            .iter()
+            .flat_map(|s| s.input.iter())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
+                (a.min(u), b.max(u))
+            })
+    }
+}
+
 impl Series {
     /// Number of selected rows.
     pub fn selected_count(&self) -> usize {

@@ -55,6 +55,14 @@ impl Grid {
         })
     }
 
+    /// A grid between lines given as a slice (a parameter or model file's field): exactly
+    /// `LEVELS + 1` of them, checked as [`Grid::with_lines`] does.
+    pub fn from_line_slice(lines: &[f64]) -> Result<Self, String> {
+        let lines = <[f64; LEVELS + 1]>::try_from(lines)
+            .map_err(|_| format!("{} grid lines, need {}", lines.len(), LEVELS + 1))?;
+        Grid::with_lines(lines)
+    }
+
     /// The grid lines (equally spaced when none were given).
     pub fn lines(&self) -> [f64; LEVELS + 1] {
         match self.lines {

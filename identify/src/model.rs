@@ -50,13 +50,10 @@ pub struct PreisachModel {
 impl PreisachModel {
     /// The grid.
     pub fn grid(&self) -> Grid {
-        match self
-            .grid_lines
-            .as_deref()
-            .and_then(|l| <[f64; crate::LEVELS + 1]>::try_from(l).ok())
-        {
-            Some(lines) => Grid::with_lines(lines).unwrap_or(Grid::uniform(self.h_min, self.h_max)),
-            None => Grid::uniform(self.h_min, self.h_max),
+        // (`validate` checked the lines of a loaded model)
+        match self.grid_lines.as_deref().map(Grid::from_line_slice) {
+            Some(Ok(grid)) => grid,
+            _ => Grid::uniform(self.h_min, self.h_max),
         }
     }
 
@@ -217,13 +214,7 @@ pub fn fit_table(
     let range_grid = match range {
         Some((lo, hi)) => Grid::uniform(lo, hi),
         None => {
-            let (lo, hi) = table
-                .series
-                .iter()
-                .flat_map(|s| s.input.iter())
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
-                    (a.min(u), b.max(u))
-                });
+            let (lo, hi) = table.input_range();
             if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
                 return Err(crate::fit::FitError(format!(
                     "{}: column `{}` has no variation: no hysteresis to fit",

@@ -7,11 +7,7 @@ use proptest::prelude::*;
 
 /// The measure baked into this build.
 pub fn baked_measure() -> PreisachMeasure {
-    let p = BAKED_PARAMETERS.preisach;
-    match &p.lines_a_per_m {
-        Some(lines) => PreisachMeasure::with_lines(&p.weights_a_per_m, lines),
-        None => PreisachMeasure::new(&p.weights_a_per_m, p.h_min_a_per_m, p.h_max_a_per_m),
-    }
+    BAKED_PARAMETERS.preisach.measure()
 }
 
 /// Field (A/m, f32) of normalized input `x` for `measure`.
