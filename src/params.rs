@@ -56,6 +56,8 @@ pub struct PreisachGrid {
     pub h_max_a_per_m: f32,
     /// The grid lines (`LEVELS + 1`, from `h_min` to `h_max`), A/m; `None`: equal intervals.
     pub lines_a_per_m: Option<[f32; crate::preisach::LEVELS + 1]>,
+    /// The reversible part's susceptibility per grid interval; `None`: no reversible part.
+    pub reversible_susceptibility: Option<[f32; crate::preisach::LEVELS]>,
     /// Cell masses, A/m.
     pub weights_a_per_m: [f32; CELL_COUNT],
 }
@@ -64,7 +66,7 @@ impl PreisachGrid {
     /// The Preisach measure (operator coefficients) of this grid: on its lines, or on equal
     /// intervals (a `const fn`: the baked measure is computed at compile time).
     pub const fn measure(&self) -> crate::preisach::PreisachMeasure {
-        match &self.lines_a_per_m {
+        let hysteretic = match &self.lines_a_per_m {
             Some(lines) => {
                 crate::preisach::PreisachMeasure::with_lines(&self.weights_a_per_m, lines)
             }
@@ -73,6 +75,10 @@ impl PreisachGrid {
                 self.h_min_a_per_m,
                 self.h_max_a_per_m,
             ),
+        };
+        match &self.reversible_susceptibility {
+            Some(chi) => hysteretic.with_reversible(chi),
+            None => hysteretic,
         }
     }
 }
@@ -280,10 +286,32 @@ mod from_file {
                     Some(lines)
                 }
             };
+            let reversible_susceptibility = match &p.reversible_susceptibility {
+                None => None,
+                Some(given) => {
+                    let levels = crate::preisach::LEVELS;
+                    if given.len() != levels {
+                        return Err(ParamsError {
+                            source_name: source_name.to_string(),
+                            field: "preisach.reversible_susceptibility".into(),
+                            reason: format!(
+                                "the core needs {levels} susceptibilities, the file has {}",
+                                given.len()
+                            ),
+                        });
+                    }
+                    let mut chi = [0.0f32; crate::preisach::LEVELS];
+                    for (dst, &src) in chi.iter_mut().zip(given) {
+                        *dst = src as f32;
+                    }
+                    Some(chi)
+                }
+            };
             Ok(PreisachGrid {
                 h_min_a_per_m: p.h_min_a_per_m as f32,
                 h_max_a_per_m: p.h_max_a_per_m as f32,
                 lines_a_per_m,
+                reversible_susceptibility,
                 weights_a_per_m,
             })
         }

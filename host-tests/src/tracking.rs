@@ -21,7 +21,9 @@
 //! the trajectory at `t_0`, so a run has no start-up transient and the error measures the
 //! inverse alone.
 
-use crate::reference::dynamics::{simulate_held, PlantConstants, ReferencePlant, RelayHysteresis};
+use crate::reference::dynamics::{
+    simulate_held, PlantConstants, ReferencePlant, RelayHysteresis, ReversibleRelayHysteresis,
+};
 use crate::reference::preisach::{ReferenceError, RelayPreisach};
 use magctl::inverse::{ControlLoop, InverseKind, LoopState, TickOutput};
 use magctl::params::{Actuator, ActuatorParameters};
@@ -91,12 +93,27 @@ pub fn start_plant<'f>(
     kind: InverseKind,
     constants: PlantConstants,
     field: &'f RelayPreisach,
-) -> ReferencePlant<RelayHysteresis<'f>> {
+) -> ReferencePlant<ReversibleRelayHysteresis<'f>> {
     let start: LoopState<CAPACITY> = control.init(kind);
     let desired = control.trajectory().motion(&start.core.trajectory);
-    let hysteresis = RelayHysteresis {
-        field,
-        state: field.negative_saturation(),
+    // The controller's reversible part (none: all zero), evaluated by the reference's own f64
+    // definition on the controller's grid lines.
+    let measure = control.measure();
+    let hysteresis = ReversibleRelayHysteresis {
+        relays: RelayHysteresis {
+            field,
+            state: field.negative_saturation(),
+        },
+        lines_a_per_m: measure
+            .grid_lines_a_per_m()
+            .iter()
+            .map(|&h| h as f64)
+            .collect(),
+        susceptibility: measure
+            .reversible_susceptibility()
+            .iter()
+            .map(|&c| c as f64)
+            .collect(),
     };
     ReferencePlant::at_state(
         constants,

@@ -390,6 +390,11 @@ pub fn identify(
         weights: result.weights.clone(),
         offset: 0.0,
         slope: 0.0,
+        reversible_slopes: options
+            .fit
+            .reversible
+            .is_piecewise()
+            .then(|| result.reversible_slopes.clone()),
         initial_state: initials
             .first()
             .copied()
@@ -417,6 +422,11 @@ pub fn identify(
 
     let mut params = base.clone();
     params.preisach.weights_a_per_m = result.weights.clone();
+    params.preisach.reversible_susceptibility = options
+        .fit
+        .reversible
+        .is_piecewise()
+        .then(|| result.reversible_slopes.clone());
     let mut prov = provenance(dataset, base, base_name, options, &result, &files, &choices);
     prov.details.insert(
         "sensor_offset_m".into(),

@@ -13,6 +13,7 @@
 //! and the fit decides what to do with them, openly ([`crate::fit::Unexcited`]).
 
 use crate::cells::fractions;
+use crate::fit::Reversible;
 use crate::memory::{InitialState, Memory, Piece};
 use crate::{CELL_COUNT, LEVELS};
 
@@ -184,12 +185,18 @@ pub fn run_experiment(
     outside
 }
 
+/// Interval `k`'s ramp of the piecewise reversible part at normalized input `x`:
+/// `clamp(x - k, 0, 1) - ½` (centred, so that an odd curve needs no offset).
+pub fn ramp(x: f64, k: usize) -> f64 {
+    (x - k as f64).clamp(0.0, 1.0) - 0.5
+}
+
 /// Normal equations of the regression and the excitation bookkeeping.
 #[derive(Debug, Clone)]
 pub struct Design {
-    /// Whether the two affine columns are present.
-    pub affine: bool,
-    /// Number of unknowns: 325, or 327 with the affine part.
+    /// The reversible part's columns after the masses.
+    pub reversible: Reversible,
+    /// Number of unknowns: 325 plus [`Reversible::unknowns`].
     pub unknowns: usize,
     /// `AᵀA`, dense, row-major `unknowns × unknowns` (both triangles filled at the end).
     pub ata: Vec<f64>,
@@ -220,13 +227,13 @@ impl Design {
     pub fn build(
         grid: &Grid,
         experiments: &[Experiment<'_>],
-        affine: bool,
+        reversible: Reversible,
         output_scale: f64,
         row_stride: usize,
     ) -> Self {
-        let unknowns = CELL_COUNT + if affine { 2 } else { 0 };
+        let unknowns = CELL_COUNT + reversible.unknowns();
         let mut design = Design {
-            affine,
+            reversible,
             unknowns,
             ata: vec![0.0; unknowns * unknowns],
             atb: vec![0.0; unknowns],
@@ -256,9 +263,21 @@ impl Design {
                     r.0 = r.0.min(a[k]);
                     r.1 = r.1.max(a[k]);
                 }
-                if affine {
-                    a[CELL_COUNT] = 1.0;
-                    a[CELL_COUNT + 1] = x / LEVELS as f64 - 0.5;
+                match reversible {
+                    Reversible::None => {}
+                    Reversible::Linear => {
+                        a[CELL_COUNT] = 1.0;
+                        a[CELL_COUNT + 1] = x / LEVELS as f64 - 0.5;
+                    }
+                    Reversible::Piecewise | Reversible::PiecewiseNoOffset => {
+                        if reversible == Reversible::Piecewise {
+                            a[CELL_COUNT] = 1.0;
+                        }
+                        let first = reversible.first_slope();
+                        for k in 0..LEVELS {
+                            a[first + k] = ramp(x, k);
+                        }
+                    }
                 }
                 let y = e.output[t];
                 design.output_range.0 = design.output_range.0.min(y);

@@ -71,6 +71,80 @@ impl Unexcited {
     }
 }
 
+/// The reversible (anhysteretic) part of the output, fitted in the same least squares as the
+/// masses, each with an output offset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reversible {
+    /// The masses alone (no offset, no reversible part).
+    None,
+    /// `offset + slope · ĥ(input)`, one slope of either sign, continued beyond the grid (`ĥ`:
+    /// [`crate::design::Grid::equivalent_input`]; the input itself on equal intervals).
+    Linear,
+    /// `offset + Σ_k χ_k (clamp(input, line_k, line_{k+1}) - mid_k)`: a monotone piecewise-linear
+    /// anhysteretic curve with a free slope `χ_k >= 0` on each grid interval (kinks at the grid
+    /// lines, flat beyond the grid), smoothed like the densities (see the module docs). The
+    /// actuator model's reversible magnetization (`preisach.reversible_susceptibility`).
+    Piecewise,
+    /// [`Reversible::Piecewise`] without the offset: the actuator's `M = Γ[H] + R(H)`, whose
+    /// parameter file has no output offset (`maglab identify`).
+    PiecewiseNoOffset,
+}
+
+impl Reversible {
+    /// CLI names.
+    pub const NAMES: [(&'static str, Reversible); 4] = [
+        ("none", Reversible::None),
+        ("linear", Reversible::Linear),
+        ("piecewise", Reversible::Piecewise),
+        ("piecewise-no-offset", Reversible::PiecewiseNoOffset),
+    ];
+
+    /// Parses a CLI name.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        Self::NAMES
+            .iter()
+            .find(|(n, _)| *n == text)
+            .map(|(_, r)| *r)
+            .ok_or_else(|| {
+                format!(
+                    "unknown reversible part `{text}`; expected one of {}",
+                    Self::NAMES.map(|(n, _)| n).join(", ")
+                )
+            })
+    }
+
+    /// The CLI name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES
+            .iter()
+            .find(|(_, r)| *r == self)
+            .map_or("?", |(n, _)| n)
+    }
+
+    /// Unknowns after the masses: offset and slope(s).
+    pub fn unknowns(self) -> usize {
+        match self {
+            Reversible::None => 0,
+            Reversible::Linear => 2,
+            Reversible::Piecewise => 1 + LEVELS,
+            Reversible::PiecewiseNoOffset => LEVELS,
+        }
+    }
+
+    /// Whether the part has a slope per grid interval.
+    pub fn is_piecewise(self) -> bool {
+        matches!(self, Reversible::Piecewise | Reversible::PiecewiseNoOffset)
+    }
+
+    /// Index of the first piecewise slope among the unknowns.
+    pub fn first_slope(self) -> usize {
+        match self {
+            Reversible::PiecewiseNoOffset => CELL_COUNT,
+            _ => CELL_COUNT + 1,
+        }
+    }
+}
+
 /// Options of the fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitOptions {
@@ -78,9 +152,9 @@ pub struct FitOptions {
     pub smoothness: f64,
     /// λ_r, ridge weight toward the prior.
     pub ridge: f64,
-    /// Fit the affine/reversible part `offset + slope · ĥ(input)` jointly (`ĥ`: see
-    /// [`crate::design::Grid::equivalent_input`]; the input itself on equal intervals).
-    pub affine: bool,
+    /// The reversible part fitted jointly with the masses (with an output offset), see
+    /// [`Reversible`].
+    pub reversible: Reversible,
     /// Treatment of unexcited cells.
     pub unexcited: Unexcited,
     /// Keep every n-th selected row in the regression (1 = all).
@@ -92,7 +166,7 @@ impl Default for FitOptions {
         FitOptions {
             smoothness: 1e-6,
             ridge: 0.0,
-            affine: false,
+            reversible: Reversible::None,
             unexcited: Unexcited::Regularized,
             row_stride: 1,
         }
@@ -106,8 +180,11 @@ pub struct FitResult {
     pub weights: Vec<f64>,
     /// Affine offset (output units); 0 without the affine part.
     pub offset: f64,
-    /// Affine slope (output units per input unit); 0 without the affine part.
+    /// Affine slope (output units per input unit); 0 unless [`Reversible::Linear`].
     pub slope: f64,
+    /// The slope `χ_k` on each grid interval (output units per input unit) of
+    /// [`Reversible::Piecewise`]; empty otherwise.
+    pub reversible_slopes: Vec<f64>,
     /// Cells the fit rows did not excite (alpha-major indices).
     pub unexcited: Vec<usize>,
     /// Rows in the regression.
@@ -135,6 +212,10 @@ impl fmt::Display for FitError {
 }
 
 impl std::error::Error for FitError {}
+
+/// Smallest smoothness weight of the piecewise reversible part's slopes: an interval the data
+/// never cross leaves its ramp constant, and the smoothing then carries its neighbours' slope in.
+pub const REVERSIBLE_SMOOTHNESS_MIN: f64 = 1e-6;
 
 /// Area of cell `k` in normalized units.
 fn cell_area(k: usize) -> f64 {
@@ -223,7 +304,13 @@ pub fn fit(
         ));
     }
     let scale = hi - lo;
-    let design = Design::build(grid, experiments, options.affine, scale, options.row_stride);
+    let design = Design::build(
+        grid,
+        experiments,
+        options.reversible,
+        scale,
+        options.row_stride,
+    );
     let unexcited = design.unexcited();
     let n = design.unknowns;
     let rows = design.rows as f64;
@@ -251,6 +338,32 @@ pub fn fit(
             if let Some(p) = prior {
                 g[k] += c * ia * ia * p[k] / scale;
             }
+        }
+    }
+
+    // The piecewise reversible part: its slopes per unit field, `c_k / ŵ_k` (`c_k` the
+    // coefficient of interval k's ramp in normalized input, `ŵ_k` its width in units of Δ), are
+    // smoothed between neighbouring intervals like the densities, relative to `1 / L` (the slope
+    // of a straight line through the output range).
+    let widths: Vec<f64> = {
+        let lines = grid.lines();
+        let mean = grid.cell_width();
+        (0..LEVELS)
+            .map(|k| (lines[k + 1] - lines[k]) / mean)
+            .collect()
+    };
+    let slope0 = options.reversible.first_slope();
+    if options.reversible.is_piecewise() {
+        let c_ref = 1.0 / LEVELS as f64;
+        let c = options.smoothness.max(REVERSIBLE_SMOOTHNESS_MIN)
+            / ((LEVELS - 1) as f64 * c_ref * c_ref);
+        for k in 0..LEVELS - 1 {
+            let (a, b) = (slope0 + k, slope0 + k + 1);
+            let (ia, ib) = (1.0 / widths[k], 1.0 / widths[k + 1]);
+            h[a * n + a] += c * ia * ia;
+            h[b * n + b] += c * ib * ib;
+            h[a * n + b] -= c * ia * ib;
+            h[b * n + a] -= c * ia * ib;
         }
     }
 
@@ -288,7 +401,11 @@ pub fn fit(
         }
         v
     };
-    let free: Vec<usize> = (0..CELL_COUNT).filter(|&k| !is_fixed[k]).collect();
+    let mut free: Vec<usize> = (0..CELL_COUNT).filter(|&k| !is_fixed[k]).collect();
+    if options.reversible.is_piecewise() {
+        // Monotone: every slope >= 0.
+        free.extend(slope0..slope0 + LEVELS);
+    }
     let m = fixed.len() + free.len();
     // One nonzero per constraint row; build column-wise.
     let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(m); // (col, row, val)
@@ -364,18 +481,34 @@ pub fn fit(
             _ => 0.0,
         };
     }
-    let (offset, slope) = if options.affine {
-        let (c0, c1) = (z[CELL_COUNT] * scale, z[CELL_COUNT + 1] * scale);
-        let span = grid.h_max - grid.h_min;
-        // c0 + c1 ((u - h_min)/span - ½) = offset + slope u.
-        (c0 - c1 * (grid.h_min / span + 0.5), c1 / span)
-    } else {
-        (0.0, 0.0)
+    let (offset, slope, reversible_slopes) = match options.reversible {
+        Reversible::None => (0.0, 0.0, Vec::new()),
+        Reversible::Linear => {
+            let (c0, c1) = (z[CELL_COUNT] * scale, z[CELL_COUNT + 1] * scale);
+            let span = grid.h_max - grid.h_min;
+            // c0 + c1 ((u - h_min)/span - ½) = offset + slope u.
+            (c0 - c1 * (grid.h_min / span + 0.5), c1 / span, Vec::new())
+        }
+        Reversible::Piecewise | Reversible::PiecewiseNoOffset => {
+            // c_k (clamp(x - k, 0, 1) - ½) = χ_k (clamp(u, line_k, line_k+1) - mid_k) with
+            // χ_k = c_k / width_k (field units); slack below zero clipped.
+            let lines = grid.lines();
+            let slopes = (0..LEVELS)
+                .map(|k| (z[slope0 + k] * scale).max(0.0) / (lines[k + 1] - lines[k]))
+                .collect();
+            let offset = if options.reversible == Reversible::Piecewise {
+                z[CELL_COUNT] * scale
+            } else {
+                0.0
+            };
+            (offset, 0.0, slopes)
+        }
     };
     Ok(FitResult {
         weights,
         offset,
         slope,
+        reversible_slopes,
         unexcited,
         rows: design.rows,
         strided_out: design.strided_out,

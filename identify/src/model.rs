@@ -41,6 +41,10 @@ pub struct PreisachModel {
     pub offset: f64,
     /// Affine slope (output units per input unit).
     pub slope: f64,
+    /// The piecewise reversible part's slope on each grid interval (output units per input
+    /// unit, `>= 0`; [`crate::fit::Reversible::Piecewise`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reversible_slopes: Option<Vec<f64>>,
     /// Initial memory assumed for each experiment.
     pub initial_state: InitialState,
     /// How it was fitted (data, options, residuals, unexcited cells).
@@ -65,7 +69,11 @@ impl PreisachModel {
             out.push(
                 crate::cells::output(f, &self.weights)
                     + self.offset
-                    + self.slope * grid.equivalent_input(input[t], x),
+                    + self.slope * grid.equivalent_input(input[t], x)
+                    + self
+                        .reversible_slopes
+                        .as_deref()
+                        .map_or(0.0, |slopes| piecewise_reversible(&grid, slopes, x)),
             );
         });
         out
@@ -85,6 +93,7 @@ impl PreisachModel {
             weights: weights.to_vec(),
             offset: 0.0,
             slope: 0.0,
+            reversible_slopes: None,
             initial_state,
             provenance: serde_json::Value::Null,
         }
@@ -153,6 +162,23 @@ impl PreisachModel {
                 ));
             }
         }
+        if let Some(slopes) = &self.reversible_slopes {
+            if slopes.len() != crate::LEVELS {
+                return Err(format!(
+                    "{name}: field `reversible_slopes`: {} slopes needed (one per interval), got {}",
+                    crate::LEVELS,
+                    slopes.len()
+                ));
+            }
+            for (k, c) in slopes.iter().enumerate() {
+                if !(c.is_finite() && *c >= 0.0) {
+                    return Err(format!(
+                        "{name}: field `reversible_slopes[{k}]`: a slope must be finite and >= 0 \
+                         (the reversible part is monotone), got {c}"
+                    ));
+                }
+            }
+        }
         for (field, v) in [("offset", self.offset), ("slope", self.slope)] {
             if !v.is_finite() {
                 return Err(format!("{name}: field `{field}`: not finite ({v})"));
@@ -170,6 +196,17 @@ impl PreisachModel {
         model.validate(&name)?;
         Ok(model)
     }
+}
+
+/// The piecewise reversible part at normalized input `x`: `Σ_k χ_k width_k (clamp(x - k, 0, 1) - ½)`
+/// (= `Σ_k χ_k (clamp(u, line_k, line_k+1) - mid_k)` in the input `u`; flat beyond the grid).
+pub fn piecewise_reversible(grid: &Grid, slopes: &[f64], x: f64) -> f64 {
+    let lines = grid.lines();
+    slopes
+        .iter()
+        .enumerate()
+        .map(|(k, chi)| chi * (lines[k + 1] - lines[k]) * crate::design::ramp(x, k))
+        .sum()
 }
 
 /// Normalized RMS error: `RMS(predicted - measured) / (max - min of measured)` over the rows with
@@ -201,7 +238,10 @@ pub const DEFAULT_RANGE_MARGIN: f64 = 0.02;
 /// Fits a generic model to the selected rows of `table` (every experiment starts from
 /// `initial`). The grid is `range` if given, else the input range of the whole table (all rows,
 /// selected or not, so that prediction on the other rows stays inside the grid) widened by
-/// `margin` on each side.
+/// `margin` on each side. `lines` (when `Auto`) and `auto_smoothness` (among
+/// [`SMOOTHNESS_CANDIDATES`]) are chosen by [`validate_choices`].
+// (each argument is one independent choice of the fit; a struct would only rename them)
+#[allow(clippy::too_many_arguments)]
 pub fn fit_table(
     table: &crate::columns::Table,
     spec: &crate::columns::ColumnSpec,
@@ -209,6 +249,7 @@ pub fn fit_table(
     margin: f64,
     initial: InitialState,
     lines: crate::lines::LineChoice,
+    auto_smoothness: bool,
     options: &crate::fit::FitOptions,
 ) -> Result<(PreisachModel, crate::fit::FitResult), crate::fit::FitError> {
     let range_grid = match range {
@@ -237,14 +278,39 @@ pub fn fit_table(
             weights: None,
         })
         .collect();
-    let (lines, validation) = match lines {
-        // (the choice made is recorded in the provenance's `grid_lines`)
-        crate::lines::LineChoice::Auto => {
-            let (choice, scores) = validate_lines(&range_grid, &experiments, options)?;
-            (choice, Some(scores))
-        }
-        fixed => (fixed, None),
+    // (the choices made are recorded in the provenance's `grid_lines` and `options`)
+    let line_candidates: &[crate::lines::LineChoice] = match lines {
+        crate::lines::LineChoice::Auto => &[
+            crate::lines::LineChoice::Uniform,
+            crate::lines::LineChoice::EqualOutput,
+        ],
+        ref fixed => std::slice::from_ref(fixed),
     };
+    let smoothness_candidates: &[f64] = if auto_smoothness {
+        &SMOOTHNESS_CANDIDATES
+    } else {
+        std::slice::from_ref(&options.smoothness)
+    };
+    let (lines, options, validation) = if line_candidates.len() * smoothness_candidates.len() > 1 {
+        let (choice, smoothness, scores) = validate_choices(
+            &range_grid,
+            &experiments,
+            options,
+            line_candidates,
+            smoothness_candidates,
+        )?;
+        (
+            choice,
+            crate::fit::FitOptions {
+                smoothness,
+                ..*options
+            },
+            Some(scores),
+        )
+    } else {
+        (line_candidates[0], *options, None)
+    };
+    let options = &options;
     let grid = crate::lines::choose_grid(range_grid.h_min, range_grid.h_max, lines, &experiments);
     let result = crate::fit::fit(&grid, &experiments, None, options)?;
     let provenance = serde_json::json!({
@@ -257,13 +323,13 @@ pub fn fit_table(
         "group_column": spec.group,
         "range_margin": if range.is_some() { None } else { Some(margin) },
         "grid_lines": lines.name(),
-        "grid_lines_validation": validation.as_ref().map(|scores| scores.iter().map(|(c, rms)| {
-            serde_json::json!({"lines": c.name(), "held_back_rms": rms})
+        "validation": validation.as_ref().map(|scores| scores.iter().map(|(c, smoothness, rms)| {
+            serde_json::json!({"lines": c.name(), "smoothness": smoothness, "held_back_rms": rms})
         }).collect::<Vec<_>>()),
         "options": {
             "smoothness": options.smoothness,
             "ridge": options.ridge,
-            "affine": options.affine,
+            "reversible": options.reversible.name(),
             "unexcited": options.unexcited.name(),
             "row_stride": options.row_stride,
         },
@@ -293,82 +359,100 @@ pub fn fit_table(
         weights: result.weights.clone(),
         offset: result.offset,
         slope: result.slope,
+        reversible_slopes: options
+            .reversible
+            .is_piecewise()
+            .then(|| result.reversible_slopes.clone()),
         initial_state: initial,
         provenance,
     };
     Ok((model, result))
 }
 
-/// The line choice of [`crate::lines::LineChoice::Auto`]: uniform and equal-output lines, each
-/// fitted on the training part of every validation fold and scored (RMS, output units) on its
-/// held-back part; the lower pooled RMS wins (uniform on a tie or when there is nothing to
-/// validate on). Returns the choice and every candidate's score.
-pub fn validate_lines(
+/// The smoothness weights `auto` smoothness chooses from (see [`crate::fit`]: `1e-6` weighs a
+/// density jump of 100 % between every pair of neighbours like a 1 % RMS residual).
+pub const SMOOTHNESS_CANDIDATES: [f64; 3] = [1e-7, 1e-6, 1e-5];
+
+/// A validated choice: lines, smoothness, and the held-back RMS (output units) of a candidate.
+pub type Candidate = (crate::lines::LineChoice, f64, f64);
+
+/// The choice of grid lines ([`crate::lines::LineChoice::Auto`]) and smoothness (`auto`): every
+/// candidate fitted on the training part of every validation fold and scored (RMS, output units)
+/// on its held-back part; the lowest pooled RMS wins (the first candidate on a tie or when there
+/// is nothing to validate on). Returns the choice and every candidate's score.
+pub fn validate_choices(
     range: &Grid,
     experiments: &[crate::design::Experiment<'_>],
     options: &crate::fit::FitOptions,
-) -> Result<
-    (
-        crate::lines::LineChoice,
-        Vec<(crate::lines::LineChoice, f64)>,
-    ),
-    crate::fit::FitError,
-> {
-    use crate::lines::{choose_grid, validation_folds, LineChoice};
+    lines: &[crate::lines::LineChoice],
+    smoothness: &[f64],
+) -> Result<(crate::lines::LineChoice, f64, Vec<Candidate>), crate::fit::FitError> {
+    use crate::lines::{choose_grid, validation_folds};
+    let first = (lines[0], smoothness[0]);
     let selected: Vec<&[bool]> = experiments.iter().map(|e| e.selected).collect();
     let folds = validation_folds(&selected);
     if folds.is_empty() {
-        return Ok((LineChoice::Uniform, Vec::new()));
+        return Ok((first.0, first.1, Vec::new()));
     }
     let mut scores = Vec::new();
-    for candidate in [LineChoice::Uniform, LineChoice::EqualOutput] {
-        let (mut sum_sq, mut count) = (0.0, 0usize);
-        for (fit_masks, predict_masks) in &folds {
-            let training: Vec<crate::design::Experiment<'_>> = experiments
-                .iter()
-                .zip(fit_masks)
-                .map(|(e, mask)| crate::design::Experiment {
-                    selected: mask,
-                    ..*e
-                })
-                .collect();
-            let grid = choose_grid(range.h_min, range.h_max, candidate, &training);
-            let result = match crate::fit::fit(&grid, &training, None, options) {
-                Ok(r) => r,
-                // A fold whose training rows excite nothing scores as unusable for every
-                // candidate alike: skip it.
-                Err(_) => continue,
+    for &candidate in lines {
+        for &lambda in smoothness {
+            let trial = crate::fit::FitOptions {
+                smoothness: lambda,
+                ..*options
             };
-            let mut model =
-                PreisachModel::from_weights(grid, &result.weights, InitialState::Periodic);
-            model.offset = result.offset;
-            model.slope = result.slope;
-            for (e, mask) in experiments.iter().zip(predict_masks) {
-                if !mask.iter().any(|&m| m) {
-                    continue;
-                }
-                let predicted = model.predict(e.input, e.initial);
-                for ((&p, &y), &m) in predicted.iter().zip(e.output).zip(mask) {
-                    if m {
-                        sum_sq += (p - y) * (p - y);
-                        count += 1;
+            let (mut sum_sq, mut count) = (0.0, 0usize);
+            for (fit_masks, predict_masks) in &folds {
+                let training: Vec<crate::design::Experiment<'_>> = experiments
+                    .iter()
+                    .zip(fit_masks)
+                    .map(|(e, mask)| crate::design::Experiment {
+                        selected: mask,
+                        ..*e
+                    })
+                    .collect();
+                let grid = choose_grid(range.h_min, range.h_max, candidate, &training);
+                let result = match crate::fit::fit(&grid, &training, None, &trial) {
+                    Ok(r) => r,
+                    // A fold whose training rows excite nothing scores as unusable for every
+                    // candidate alike: skip it.
+                    Err(_) => continue,
+                };
+                let mut model =
+                    PreisachModel::from_weights(grid, &result.weights, InitialState::Periodic);
+                model.offset = result.offset;
+                model.slope = result.slope;
+                model.reversible_slopes = options
+                    .reversible
+                    .is_piecewise()
+                    .then(|| result.reversible_slopes.clone());
+                for (e, mask) in experiments.iter().zip(predict_masks) {
+                    if !mask.iter().any(|&m| m) {
+                        continue;
+                    }
+                    let predicted = model.predict(e.input, e.initial);
+                    for ((&p, &y), &m) in predicted.iter().zip(e.output).zip(mask) {
+                        if m {
+                            sum_sq += (p - y) * (p - y);
+                            count += 1;
+                        }
                     }
                 }
             }
+            let rms = if count > 0 {
+                (sum_sq / count as f64).sqrt()
+            } else {
+                f64::INFINITY
+            };
+            scores.push((candidate, lambda, rms));
         }
-        let rms = if count > 0 {
-            (sum_sq / count as f64).sqrt()
-        } else {
-            f64::INFINITY
-        };
-        scores.push((candidate, rms));
     }
     let best = scores
         .iter()
-        .filter(|s| s.1.is_finite())
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map_or(LineChoice::Uniform, |s| s.0);
-    Ok((best, scores))
+        .filter(|s| s.2.is_finite())
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .map_or(first, |s| (s.0, s.1));
+    Ok((best.0, best.1, scores))
 }
 
 /// Predictions of `model` for every experiment of `table` (from the model's initial state) and

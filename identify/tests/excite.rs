@@ -48,7 +48,7 @@ fn forc_excitation_excites_and_determines_every_cell() {
             initial: InitialState::NegativeSaturation,
             weights: None,
         }],
-        false,
+        maglab_identify::fit::Reversible::None,
         1.0,
         1,
     );
@@ -87,7 +87,7 @@ fn forc_excitation_excites_and_determines_every_cell() {
             initial: InitialState::NegativeSaturation,
             weights: None,
         }],
-        false,
+        maglab_identify::fit::Reversible::None,
         1.0,
         1,
     );

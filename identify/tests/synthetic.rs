@@ -90,7 +90,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
         &FitOptions {
             smoothness: 1e-6,
             ridge: 0.0,
-            affine: false,
+            reversible: maglab_identify::fit::Reversible::None,
             unexcited: Unexcited::Regularized,
             row_stride: 1,
         },

@@ -75,7 +75,7 @@ pub fn run(args: &Args) -> Result<()> {
             initial: InitialState::NegativeSaturation,
             weights: None,
         }],
-        false,
+        maglab_identify::fit::Reversible::None,
         1.0,
         1,
     );

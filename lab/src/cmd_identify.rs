@@ -75,6 +75,13 @@ pub struct Args {
     /// Use every n-th sample in the regression (the memory still sees every sample).
     #[arg(long, default_value_t = 1)]
     row_stride: usize,
+    /// The reversible magnetization: `none` (the paper's M = Γ[H]) or `piecewise` (M = Γ[H] +
+    /// R(H), a monotone piecewise-linear anhysteretic part with a susceptibility per grid
+    /// interval, fitted with the masses and written as `preisach.reversible_susceptibility`).
+    /// `none` by default: a reversible part the nominal model lacks is then left for `maglab
+    /// diagnose` to name.
+    #[arg(long, default_value = "none")]
+    reversible: String,
     /// Directory for the plots.
     #[arg(long, default_value = "out")]
     plot_dir: PathBuf,
@@ -143,7 +150,11 @@ pub fn run(args: &Args) -> Result<()> {
         fit: FitOptions {
             smoothness: args.smoothness,
             ridge: args.ridge,
-            affine: false,
+            reversible: match args.reversible.as_str() {
+                "none" => maglab_identify::fit::Reversible::None,
+                "piecewise" => maglab_identify::fit::Reversible::PiecewiseNoOffset,
+                other => bail!("--reversible `{other}`: expected `none` or `piecewise`"),
+            },
             unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
             row_stride: args.row_stride,
         },
@@ -223,6 +234,30 @@ pub fn run(args: &Args) -> Result<()> {
         id.fit.weights.iter().sum::<f64>(),
         base.actuator.saturation_magnetization_a_per_m
     );
+    if let Some(chi) = &id.params.preisach.reversible_susceptibility {
+        let lines = maglab_identify::design::Grid::uniform(
+            id.params.preisach.h_min_a_per_m,
+            id.params.preisach.h_max_a_per_m,
+        );
+        let lines = match &id.params.preisach.grid_lines_a_per_m {
+            Some(l) => maglab_identify::design::Grid::from_line_slice(l).unwrap_or(lines),
+            None => lines,
+        }
+        .lines();
+        let half_span: f64 = 0.5
+            * chi
+                .iter()
+                .enumerate()
+                .map(|(k, c)| c * (lines[k + 1] - lines[k]))
+                .sum::<f64>();
+        println!(
+            "reversible part: susceptibility {:.3e} to {:.3e}, R at the top of the grid {:.6e} A/m \
+             (saturation output = sum of masses + that)",
+            chi.iter().cloned().fold(f64::INFINITY, f64::min),
+            chi.iter().cloned().fold(0.0, f64::max),
+            half_span
+        );
+    }
     println!(
         "unexcited cells: {} (treatment: {})",
         id.fit.unexcited.len(),

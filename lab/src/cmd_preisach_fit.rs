@@ -15,7 +15,7 @@ use crate::plot_preisach::WeightMap;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
 use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter, Table};
-use maglab_identify::fit::{FitOptions, Unexcited};
+use maglab_identify::fit::{FitOptions, Reversible, Unexcited};
 use maglab_identify::lines::LineChoice;
 use maglab_identify::memory::InitialState;
 use maglab_identify::model::{fit_table, predict_table, PreisachModel, DEFAULT_RANGE_MARGIN};
@@ -59,17 +59,23 @@ pub struct FitArgs {
     /// else demagnetized; the choice is printed.
     #[arg(long, default_value = "auto")]
     initial: String,
-    /// Smoothness weight λ_s (see maglab_identify::fit).
-    #[arg(long, default_value_t = 1e-6)]
-    smoothness: f64,
+    /// Smoothness weight λ_s (see maglab_identify::fit), or auto: chosen from 1e-7, 1e-6, 1e-5
+    /// together with the grid lines by the same validation on held-back fit rows (printed).
+    #[arg(long, default_value = "auto")]
+    smoothness: String,
     /// Ridge weight λ_r toward zero.
     #[arg(long, default_value_t = 0.0)]
     ridge: f64,
-    /// Fit an affine/reversible part offset + slope·input jointly (the default; real materials
-    /// have a reversible part and an output offset).
+    /// The reversible part fitted with the masses, each with an output offset: piecewise (a
+    /// monotone piecewise-linear anhysteretic curve, a slope >= 0 per grid interval, flat beyond
+    /// the grid; the default), linear (one slope, continued beyond the grid), none (no offset
+    /// either).
+    #[arg(long, default_value = "piecewise")]
+    reversible: String,
+    /// Same as the default: an offset and the reversible part (kept for old command lines).
     #[arg(long, conflicts_with = "no_affine")]
     affine: bool,
-    /// Fit the Preisach masses alone, without the affine part.
+    /// Fit the Preisach masses alone: `--reversible none`.
     #[arg(long)]
     no_affine: bool,
     /// Unexcited cells: regularized (set by smoothness/ridge) or zero.
@@ -153,10 +159,28 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
             Some((lo, hi))
         }
     };
+    let (smoothness, auto_smoothness) = match args.smoothness.as_str() {
+        "auto" => (maglab_identify::model::SMOOTHNESS_CANDIDATES[1], true),
+        text => (
+            text.parse::<f64>()
+                .map_err(|_| anyhow!("--smoothness `{text}`: expected a number >= 0 or auto"))?,
+            false,
+        ),
+    };
+    let reversible = if args.no_affine {
+        Reversible::None
+    } else {
+        match Reversible::parse(&args.reversible).map_err(|e| anyhow!("--reversible: {e}"))? {
+            Reversible::PiecewiseNoOffset => {
+                bail!("--reversible: piecewise-no-offset is for maglab identify; use piecewise")
+            }
+            r => r,
+        }
+    };
     let options = FitOptions {
-        smoothness: args.smoothness,
+        smoothness,
         ridge: args.ridge,
-        affine: !args.no_affine,
+        reversible,
         unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
         row_stride: args.row_stride,
     };
@@ -170,22 +194,35 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         })?
     };
     let lines = LineChoice::parse(&args.grid_lines).map_err(|e| anyhow!("--grid-lines: {e}"))?;
-    let (model, result) = fit_table(&table, &spec, range, args.margin, initial, lines, &options)?;
-    if let Some(scores) = model.provenance["grid_lines_validation"].as_array() {
+    let (model, result) = fit_table(
+        &table,
+        &spec,
+        range,
+        args.margin,
+        initial,
+        lines,
+        auto_smoothness,
+        &options,
+    )?;
+    if let Some(scores) = model.provenance["validation"].as_array() {
         let text: Vec<String> = scores
             .iter()
             .map(|s| {
                 format!(
-                    "{} {:.4e}",
+                    "{} {:e} {:.4e}",
                     s["lines"].as_str().unwrap_or("?"),
+                    s["smoothness"].as_f64().unwrap_or(f64::NAN),
                     s["held_back_rms"].as_f64().unwrap_or(f64::NAN)
                 )
             })
             .collect();
         println!(
-            "grid lines auto: {} (RMS on held-back fit rows: {})",
+            "validated: grid lines {}, smoothness {:e} (RMS on held-back fit rows: {})",
             model.provenance["grid_lines"].as_str().unwrap_or("?"),
-            text.join(", ")
+            model.provenance["options"]["smoothness"]
+                .as_f64()
+                .unwrap_or(f64::NAN),
+            text.join("; ")
         );
     }
     let json = model.to_json_pretty();
@@ -233,11 +270,21 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         result.output_scale,
         score.map_or("n/a".into(), |s| format!("{:.4} %", 100.0 * s))
     );
-    if options.affine {
-        println!(
+    match options.reversible {
+        Reversible::None => {}
+        Reversible::Linear => println!(
             "affine part: offset {:.6e}, slope {:.6e} per input unit",
             model.offset, model.slope
-        );
+        ),
+        _ => {
+            let slopes = model.reversible_slopes.as_deref().unwrap_or(&[]);
+            println!(
+                "reversible part (piecewise): offset {:.6e}, slopes {:.4e} to {:.4e} per input unit",
+                model.offset,
+                slopes.iter().cloned().fold(f64::INFINITY, f64::min),
+                slopes.iter().cloned().fold(0.0, f64::max)
+            );
+        }
     }
     println!(
         "unexcited cells: {} (treatment: {}){}",

@@ -1,5 +1,5 @@
 //! `maglab preisach-fit` / `preisach-predict` as a user runs them, on the shipped real B–H data:
-//! the defaults (affine part on, initial state chosen from the data, predict grouped like the
+//! the defaults (piecewise reversible part and offset on, initial state chosen from the data, predict grouped like the
 //! fit), per-experiment scores, negative `--levels-range` ends, and a model that agrees with its
 //! own fit when the grid is narrower than the data.
 
@@ -63,8 +63,8 @@ fn defaults_choose_periodic_affine_and_the_models_grouping() {
     ]);
     assert!(fit.contains("initial state auto: periodic"), "{fit}");
     assert!(
-        fit.contains("affine part:"),
-        "the affine part is on by default:\n{fit}"
+        fit.contains("reversible part (piecewise): offset"),
+        "the piecewise reversible part and an offset are on by default:\n{fit}"
     );
     let predict = maglab(&[
         "preisach-predict",

@@ -76,6 +76,19 @@ pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
             let _ = writeln!(out, "        ]),");
         }
     }
+    match &p.reversible_susceptibility {
+        None => {
+            let _ = writeln!(out, "        reversible_susceptibility: None,");
+        }
+        Some(chi) => {
+            let _ = writeln!(out, "        reversible_susceptibility: Some([");
+            for chunk in chi.chunks(5) {
+                let line: Vec<String> = chunk.iter().map(|&c| lit(c)).collect();
+                let _ = writeln!(out, "            {},", line.join(", "));
+            }
+            let _ = writeln!(out, "        ]),");
+        }
+    }
     let _ = writeln!(out, "        weights_a_per_m: [");
     for chunk in p.weights_a_per_m.chunks(5) {
         let line: Vec<String> = chunk.iter().map(|&w| lit(w)).collect();

@@ -53,6 +53,7 @@ pub fn paper_defaults() -> ActuatorParams {
             h_min_a_per_m: h_min,
             h_max_a_per_m: h_max,
             grid_lines_a_per_m: None,
+            reversible_susceptibility: None,
             weights_a_per_m: weights,
         },
         control: Control {

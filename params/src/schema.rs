@@ -16,6 +16,10 @@ pub const fn cell_count(levels: usize) -> usize {
 /// Version of the schema this crate reads and writes.
 pub const SCHEMA_VERSION: u32 = 1;
 
+/// Largest reversible susceptibility a parameter file may give (soft ferrites reach ~10⁴; a
+/// value far beyond is a unit error, and it would overflow the core's f32 sums).
+pub const MAX_REVERSIBLE_SUSCEPTIBILITY: f64 = 1e7;
+
 /// The whole parameter file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -79,6 +83,12 @@ pub struct Preisach {
     /// intervals.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grid_lines_a_per_m: Option<Vec<f64>>,
+    /// The reversible (anhysteretic) part's susceptibility `χ_k = dR/dH` on each of the `L`
+    /// grid intervals (dimensionless, `>= 0`): `M = Γ[H] + R(H)` with
+    /// `R(H) = Σ_k χ_k (clamp(H, line_k, line_k+1) − middle_k)`, monotone, piecewise linear,
+    /// flat beyond the grid. Absent: no reversible part (the paper's `M = Γ[H]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reversible_susceptibility: Option<Vec<f64>>,
     /// Cell masses in A/m, `L (L + 1) / 2` of them, in alpha-major order: the cell whose switch-down
     /// threshold β lies in interval `i` and switch-up threshold α in interval `j` (`i <= j`) has
     /// index `j (j + 1) / 2 + i`. The output is `M = Σ w·(±1)`, so `Σ w` is the saturation output.
@@ -646,6 +656,42 @@ impl ActuatorParams {
                         lines.last().copied().unwrap_or(f64::NAN)
                     ),
                 ));
+            }
+        }
+        if let Some(chi) = &p.reversible_susceptibility {
+            let field = "preisach.reversible_susceptibility";
+            if chi.len() != p.levels {
+                return Err(err(
+                    field,
+                    format!(
+                        "{} levels need {} susceptibilities (one per interval), the file has {}",
+                        p.levels,
+                        p.levels,
+                        chi.len()
+                    ),
+                ));
+            }
+            for (k, &c) in chi.iter().enumerate() {
+                let f = format!("{field}[{k}]");
+                check_finite(&f, c).map_err(|r| err(&f, r))?;
+                if c < 0.0 {
+                    return Err(err(
+                        &f,
+                        format!(
+                            "must be >= 0 (the reversible part must rise with the field for the \
+                             inverse to exist), got {c}"
+                        ),
+                    ));
+                }
+                if c > MAX_REVERSIBLE_SUSCEPTIBILITY {
+                    return Err(err(
+                        &f,
+                        format!(
+                            "{c} is beyond {MAX_REVERSIBLE_SUSCEPTIBILITY:e} (dM/dH of the \
+                             reversible part; is the unit right?)"
+                        ),
+                    ));
+                }
             }
         }
         let implied_levels = levels_for_cells(p.weights_a_per_m.len());

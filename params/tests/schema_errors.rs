@@ -57,6 +57,8 @@ fn every_case_is_tested_here() {
             "h_min_not_below_h_max",
             "levels_inconsistent_with_weights",
             "weights_for_another_level_count",
+            "reversible_wrong_count",
+            "reversible_negative",
             "grid_lines_wrong_count",
             "grid_lines_not_increasing",
             "grid_lines_wrong_ends",
@@ -142,6 +144,16 @@ fn levels_inconsistent_with_weights() {
 #[test]
 fn weights_for_another_level_count() {
     check("weights_for_another_level_count");
+}
+
+#[test]
+fn reversible_wrong_count() {
+    check("reversible_wrong_count");
+}
+
+#[test]
+fn reversible_negative() {
+    check("reversible_negative");
 }
 
 #[test]

@@ -188,6 +188,11 @@ impl<'m> ControlLoop<'m> {
         })
     }
 
+    /// The Preisach measure (with its reversible part) the loop inverts.
+    pub fn measure(&self) -> &'m PreisachMeasure {
+        self.measure
+    }
+
     /// The trajectory generator.
     pub fn trajectory(&self) -> &VanDerPol {
         &self.trajectory

@@ -152,7 +152,7 @@ impl<'m> RelayGrid<'m> {
         if commit {
             self.x = x;
         }
-        sum
+        sum + self.measure.reversible_at(x)
     }
 
     /// Output at the current input, A/m.

@@ -104,6 +104,17 @@ pub struct PreisachMeasure {
     /// `strips[J][I]`: the sums of the pair `I < J` (zero for `I >= J`), each summed in f64 and
     /// rounded once.
     pub(crate) strips: [[StripSums; LEVELS]; LEVELS],
+    /// The reversible part `R` at the grid lines (normalized input `k`), A/m (all 0 without one).
+    pub(crate) reversible_at_line_a_per_m: [f32; LEVELS + 1],
+    /// `ρ_k = χ_k · width_k`, the change of `R` across interval `k` (its slope per unit of
+    /// normalized input), A/m.
+    pub(crate) reversible_rise_a_per_m: [f32; LEVELS],
+    /// The susceptibilities `χ_k` the reversible part was built from (dimensionless).
+    pub(crate) reversible_susceptibility: [f32; LEVELS],
+    /// `Σ w + ½ Σ ρ`: the output at positive saturation (minus it at negative), A/m.
+    pub(crate) saturation_a_per_m: f32,
+    /// Whether any `χ_k` is nonzero (the solve's reversible terms are compiled out otherwise).
+    pub(crate) has_reversible: bool,
 }
 
 impl PreisachMeasure {
@@ -259,7 +270,56 @@ impl PreisachMeasure {
             max_density_a_per_m: max_density as f32,
             w,
             strips,
+            reversible_at_line_a_per_m: [0.0; LEVELS + 1],
+            reversible_rise_a_per_m: [0.0; LEVELS],
+            reversible_susceptibility: [0.0; LEVELS],
+            saturation_a_per_m: total as f32,
+            has_reversible: false,
         }
+    }
+
+    /// Adds the reversible (anhysteretic) part `R(h) = Σ_k χ_k (clamp(h, l_k, l_{k+1}) − m_k)`
+    /// (`l_k` the grid lines, `m_k` the middle of interval `k`, `χ_k >= 0` the susceptibility
+    /// `dR/dh` on interval `k`): monotone, piecewise linear with kinks at the grid lines, odd
+    /// about the middle of the range when the `χ_k` are symmetric, flat beyond the grid. The
+    /// output becomes `M = Γ[h] + R(h)` — the paper's `M = Γ[H]` generalized, a constant
+    /// `χ_r` giving the familiar `Γ[H] + χ_r H` on a symmetric grid.
+    ///
+    /// Why the kinks sit on the grid lines: in the normalized input `R` is then affine on each
+    /// interval, `R(k + s) = R_k + ρ_k s`, so along a monotone path the output stays piecewise
+    /// quadratic with the same pieces as `Γ` alone — forward, exact inverse and the solve keep
+    /// their closed forms (the piece's linear coefficient gains `ρ_k`).
+    ///
+    /// The caller guarantees what `actuator-params` validates: every `χ_k` finite and `>= 0`.
+    /// All zero gives exactly the measure without a reversible part.
+    pub const fn with_reversible(mut self, susceptibility: &[f32; LEVELS]) -> Self {
+        let mut rise = [0.0f64; LEVELS];
+        let mut total_rise = 0.0f64;
+        let mut k = 0;
+        while k < LEVELS {
+            let width = self.lines_a_per_m[k + 1] as f64 - self.lines_a_per_m[k] as f64;
+            rise[k] = susceptibility[k] as f64 * width;
+            total_rise += rise[k];
+            self.reversible_rise_a_per_m[k] = rise[k] as f32;
+            self.reversible_susceptibility[k] = susceptibility[k];
+            if susceptibility[k] != 0.0 {
+                self.has_reversible = true;
+            }
+            k += 1;
+        }
+        // R at line k: the rises below it minus half of all of them (each summed in f64 and
+        // rounded once).
+        let mut below = 0.0f64;
+        let mut k = 0;
+        while k <= LEVELS {
+            self.reversible_at_line_a_per_m[k] = (below - 0.5 * total_rise) as f32;
+            if k < LEVELS {
+                below += rise[k];
+            }
+            k += 1;
+        }
+        self.saturation_a_per_m = (self.total_a_per_m as f64 + 0.5 * total_rise) as f32;
+        self
     }
 
     /// Lower end of the field range, A/m.
@@ -303,9 +363,41 @@ impl PreisachMeasure {
     pub fn is_uniform(&self) -> bool {
         self.uniform
     }
-    /// Saturation output `Σ w`, A/m.
+    /// Saturation output: `Σ w` plus the reversible part at the top of the grid, A/m (the output
+    /// at negative saturation is minus it).
     pub fn saturation_a_per_m(&self) -> f32 {
+        self.saturation_a_per_m
+    }
+    /// `Σ w`, the hysteretic part's saturation output, A/m.
+    pub fn hysteretic_saturation_a_per_m(&self) -> f32 {
         self.total_a_per_m
+    }
+    /// The reversible part's susceptibility on each grid interval (all 0 without one).
+    pub fn reversible_susceptibility(&self) -> &[f32; LEVELS] {
+        &self.reversible_susceptibility
+    }
+    /// The reversible part `R(h)`, A/m (the field clamped to the grid: flat beyond it).
+    pub fn reversible_a_per_m(&self, h_a_per_m: f32) -> f32 {
+        self.reversible_at(self.normalize(h_a_per_m))
+    }
+    /// `R` at normalized input `x ∈ [0, LEVELS]`.
+    #[inline(always)]
+    pub(crate) fn reversible_at(&self, x: f32) -> f32 {
+        let (k, s) = split(x);
+        let _ = s;
+        self.reversible_in(x, k)
+    }
+    /// `R` at normalized input `x` known to lie in interval `k` (`k <= x <= k + 1`):
+    /// `R_k + ρ_k (x − k)`.
+    #[inline(always)]
+    pub(crate) fn reversible_in(&self, x: f32, k: usize) -> f32 {
+        let k = k.min(LEVELS - 1);
+        self.reversible_at_line_a_per_m[k] + self.reversible_rise_a_per_m[k] * (x - k as f32)
+    }
+    /// `ρ_k`, the change of `R` across interval `k`, A/m (its slope in normalized input).
+    #[inline(always)]
+    pub(crate) fn reversible_rise(&self, k: usize) -> f32 {
+        self.reversible_rise_a_per_m[k.min(LEVELS - 1)]
     }
     /// Largest mass per unit of normalized cell area (diagonal triangles count their mass twice,
     /// since their area is 1/2), A/m.

@@ -99,7 +99,8 @@ impl PreisachMeasure {
         self.naive_output(state)
     }
 
-    /// Naive output of a memory: `2 μ(P₊) - Σ w` with `μ(P₊)` integrated cell by cell.
+    /// Naive output of a memory: `2 μ(P₊) - Σ w + R(x)` with `μ(P₊)` integrated cell by cell
+    /// (`R` the reversible part, see [`PreisachMeasure::with_reversible`]).
     pub fn naive_output<const N: usize>(&self, state: &NaiveState<N>) -> f32 {
         // P₊ = ∪ {β ∈ [previous minimum, next minimum), α <= maximum} plus the moving segment.
         let mut plus = 0.0f32;
@@ -118,7 +119,7 @@ impl PreisachMeasure {
             let lo = pts.get(n - 1).copied().unwrap_or(0.0);
             plus += region_mass(self, lo, LEVELS as f32, state.x);
         }
-        2.0 * plus - self.total_a_per_m
+        2.0 * plus - self.total_a_per_m + self.reversible_at(state.x)
     }
 
     /// Naive inverse: bisection (32 halvings of the field range) for `a·h + Γ(h) = r`, each trial a

@@ -93,36 +93,67 @@ impl PreisachMeasure {
         if a < 0.0 {
             return Err(SolveError::NegativeSlope);
         }
-        let g_now = if PLAIN {
+        // Without a reversible part its terms are compiled out (`REV = false`): the control
+        // interrupt of an actuator with `M = Γ[H]` pays one branch for it.
+        if self.has_reversible {
+            Ok(self.solve_walk::<N, PLAIN, true>(state, a, r_a_per_m))
+        } else {
+            Ok(self.solve_walk::<N, PLAIN, false>(state, a, r_a_per_m))
+        }
+    }
+
+    /// The walk of [`Self::solve_impl`], with `REV` telling whether the measure has a reversible
+    /// part.
+    #[inline(always)]
+    fn solve_walk<const N: usize, const PLAIN: bool, const REV: bool>(
+        &self,
+        state: &mut PreisachState<N>,
+        a: f32,
+        r_a_per_m: f32,
+    ) -> Solution {
+        let m_now = if REV {
             self.output_a_per_m(state)
         } else {
-            a * self.denormalize(state.x) + self.output_a_per_m(state)
+            2.0 * state.plus_mass - self.total_a_per_m
+        };
+        let g_now = if PLAIN {
+            m_now
+        } else {
+            a * self.denormalize(state.x) + m_now
         };
         if r_a_per_m > g_now {
-            Ok(self.solve_rising::<N, PLAIN>(state, a, r_a_per_m))
+            self.solve_rising::<N, PLAIN, REV>(state, a, r_a_per_m)
         } else if r_a_per_m < g_now {
-            Ok(self.solve_falling::<N, PLAIN>(state, a, r_a_per_m))
+            self.solve_falling::<N, PLAIN, REV>(state, a, r_a_per_m)
         } else {
-            Ok(Solution {
+            Solution {
                 h_a_per_m: self.denormalize(state.x),
-                m_a_per_m: self.output_a_per_m(state),
+                m_a_per_m: m_now,
                 saturation: Saturation::None,
-            })
+            }
         }
     }
 
-    /// `g = a·h + 2 μ(P₊) - Σ w` at normalized `x` for a given `μ(P₊)` (`PLAIN`: `a = 0`).
+    /// `g = a·h + 2 μ(P₊) - Σ w + R(x)` at normalized `x` in interval `k` for a given `μ(P₊)`
+    /// (`PLAIN`: `a = 0`; `REV`: with the reversible part).
     #[inline(always)]
-    fn g<const PLAIN: bool>(&self, a: f32, x: f32, plus_mass: f32) -> f32 {
+    fn g<const PLAIN: bool, const REV: bool>(
+        &self,
+        a: f32,
+        x: f32,
+        k: usize,
+        plus_mass: f32,
+    ) -> f32 {
+        let m = self.m_in::<REV>(x, k, plus_mass);
         if PLAIN {
-            2.0 * plus_mass - self.total_a_per_m
+            m
         } else {
-            a * self.denormalize(x) + 2.0 * plus_mass - self.total_a_per_m
+            a * self.denormalize(x) + m
         }
     }
 
     #[inline(always)]
-    fn solve_rising<const N: usize, const PLAIN: bool>(
+    fn solve_rising<const N: usize, const PLAIN: bool, const REV: bool>(
         &self,
         state: &mut PreisachState<N>,
         a: f32,
@@ -145,12 +176,8 @@ impl PreisachMeasure {
                 LEVELS as f32
             };
             let (big_j, s0) = split(x0);
-            // d(a·h)/dx on this interval (every interval has width Δ on a uniform grid).
-            let a_cells = if PLAIN {
-                0.0
-            } else {
-                a * self.widths_a_per_m[big_j.min(LEVELS - 1)]
-            };
+            // d(a·h + R)/dx on this interval (every interval has width Δ on a uniform grid).
+            let a_cells = self.linear_per_cell::<PLAIN, REV>(a, big_j);
             let tag = big_j as u32;
             let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, cap) {
                 Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
@@ -162,9 +189,9 @@ impl PreisachMeasure {
                     (quad, xb, base.cum + quad.at(xb - big_j as f32), false)
                 }
             };
-            let g_b = self.g::<PLAIN>(a, xb, plus_b);
+            let g_b = self.g::<PLAIN, REV>(a, xb, big_j, plus_b);
             if g_b >= r {
-                let q = r - self.g::<PLAIN>(a, x0, state.plus_mass);
+                let q = r - self.g::<PLAIN, REV>(a, x0, big_j, state.plus_mass);
                 let b_lin = 2.0 * quad.slope(s0) + a_cells;
                 let a_quad = 2.0 * quad.q2;
                 let sigma = positive_root(a_quad, b_lin, q, xb - x0);
@@ -182,7 +209,7 @@ impl PreisachMeasure {
                         end_plus_mass: plus_b,
                     };
                 }
-                return self.solution_in(state, big_j);
+                return self.solution_in::<N, REV>(state, big_j);
             }
             state.x = xb;
             state.plus_mass = plus_b;
@@ -211,7 +238,7 @@ impl PreisachMeasure {
     }
 
     #[inline(always)]
-    fn solve_falling<const N: usize, const PLAIN: bool>(
+    fn solve_falling<const N: usize, const PLAIN: bool, const REV: bool>(
         &self,
         state: &mut PreisachState<N>,
         a: f32,
@@ -230,11 +257,7 @@ impl PreisachMeasure {
             let x0 = state.x;
             let floor = if m >= 3 { state.vertex_x(m - 1) } else { 0.0 };
             let (big_i, t0) = split_down(x0);
-            let a_cells = if PLAIN {
-                0.0
-            } else {
-                a * self.widths_a_per_m[big_i.min(LEVELS - 1)]
-            };
+            let a_cells = self.linear_per_cell::<PLAIN, REV>(a, big_i);
             let tag = big_i as u32 | PieceMemo::FALLING;
             let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, floor) {
                 Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
@@ -248,9 +271,9 @@ impl PreisachMeasure {
                 }
             };
             let v0 = 1.0 - t0;
-            let g_b = self.g::<PLAIN>(a, xb, plus_b);
+            let g_b = self.g::<PLAIN, REV>(a, xb, big_i, plus_b);
             if g_b <= r {
-                let q = self.g::<PLAIN>(a, x0, state.plus_mass) - r;
+                let q = self.g::<PLAIN, REV>(a, x0, big_i, state.plus_mass) - r;
                 let b_lin = 2.0 * quad.slope(v0) + a_cells;
                 let a_quad = 2.0 * quad.q2;
                 let sigma = positive_root(a_quad, b_lin, q, x0 - xb);
@@ -267,7 +290,7 @@ impl PreisachMeasure {
                         end_plus_mass: plus_b,
                     };
                 }
-                return self.solution_in(state, big_i);
+                return self.solution_in::<N, REV>(state, big_i);
             }
             state.x = xb;
             state.plus_mass = plus_b;
@@ -295,12 +318,38 @@ impl PreisachMeasure {
         }
     }
 
+    /// `M = 2 μ(P₊) − Σ w (+ R(x))` at `x` in interval `k`.
+    #[inline(always)]
+    fn m_in<const REV: bool>(&self, x: f32, k: usize, plus_mass: f32) -> f32 {
+        let hysteretic = 2.0 * plus_mass - self.total_a_per_m;
+        if REV {
+            hysteretic + self.reversible_in(x, k)
+        } else {
+            hysteretic
+        }
+    }
+
+    /// `d(a·h + R)/dx` on interval `k`: `a Δ_k + ρ_k`.
+    #[inline(always)]
+    fn linear_per_cell<const PLAIN: bool, const REV: bool>(&self, a: f32, k: usize) -> f32 {
+        let rev = if REV { self.reversible_rise(k) } else { 0.0 };
+        if PLAIN {
+            rev
+        } else {
+            a * self.widths_a_per_m[k.min(LEVELS - 1)] + rev
+        }
+    }
+
     /// The solution on the piece of interval `k` (not saturated).
     #[inline(always)]
-    fn solution_in<const N: usize>(&self, state: &PreisachState<N>, k: usize) -> Solution {
+    fn solution_in<const N: usize, const REV: bool>(
+        &self,
+        state: &PreisachState<N>,
+        k: usize,
+    ) -> Solution {
         Solution {
             h_a_per_m: self.denormalize_in(state.x, k),
-            m_a_per_m: self.output_a_per_m(state),
+            m_a_per_m: self.m_in::<REV>(state.x, k, state.plus_mass),
             saturation: Saturation::None,
         }
     }

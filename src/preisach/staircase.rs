@@ -350,10 +350,15 @@ impl PreisachMeasure {
         Ok(self.output_a_per_m(state))
     }
 
-    /// Current output `M = 2 μ(P₊) - Σ w`, A/m.
+    /// Current output `M = 2 μ(P₊) - Σ w + R(x)`, A/m (`R` the reversible part, 0 without one).
     #[inline]
     pub fn output_a_per_m<const N: usize>(&self, state: &PreisachState<N>) -> f32 {
-        2.0 * state.plus_mass - self.total_a_per_m
+        let hysteretic = 2.0 * state.plus_mass - self.total_a_per_m;
+        if self.has_reversible {
+            hysteretic + self.reversible_at(state.x)
+        } else {
+            hysteretic
+        }
     }
 
     /// Current input of the memory, A/m (clamped to the grid range).

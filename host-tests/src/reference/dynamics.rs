@@ -234,3 +234,87 @@ impl MonotoneHysteresis for RelayHysteresis<'_> {
         self.field.apply_a_per_m(&mut self.state, h_a_per_m)
     }
 }
+
+/// The relay operator plus a reversible part `R` (see
+/// [`super::preisach::reversible_a_per_m`]): `M = Γ(h) + R(h)`. Its solve is exact: on each
+/// interval of `R` (between two grid lines, or beyond the grid where `R` is flat)
+/// `a·h + R(h) = (a + χ_k) h + c_k` is linear, so `a·h + Γ(h) + R(h) = r` there is the relay
+/// operator's own exact solve with slope `a + χ_k` and target `r − c_k`; the intervals are tried
+/// along the path's direction until the solution falls inside one (the left side is monotone, so
+/// the first one that holds it is the answer).
+#[derive(Clone)]
+pub struct ReversibleRelayHysteresis<'a> {
+    /// The relay operator and its state.
+    pub relays: RelayHysteresis<'a>,
+    /// The `L + 1` grid lines, A/m.
+    pub lines_a_per_m: Vec<f64>,
+    /// `χ_k`, one per interval.
+    pub susceptibility: Vec<f64>,
+}
+
+impl ReversibleRelayHysteresis<'_> {
+    fn reversible(&self, h_a_per_m: f64) -> f64 {
+        super::preisach::reversible_a_per_m(&self.lines_a_per_m, &self.susceptibility, h_a_per_m)
+    }
+
+    /// Interval `k` of `R` as `(lower, upper, χ)`: `k = 0` below the grid, `1..=L` the grid's
+    /// intervals, `L + 1` above the grid.
+    fn piece(&self, k: usize) -> (f64, f64, f64) {
+        let lines = &self.lines_a_per_m;
+        let n = lines.len() - 1;
+        if k == 0 {
+            (f64::NEG_INFINITY, lines[0], 0.0)
+        } else if k > n {
+            (lines[n], f64::INFINITY, 0.0)
+        } else {
+            (lines[k - 1], lines[k], self.susceptibility[k - 1])
+        }
+    }
+}
+
+impl MonotoneHysteresis for ReversibleRelayHysteresis<'_> {
+    fn output_a_per_m(&self) -> f64 {
+        self.relays.output_a_per_m() + self.reversible(self.input_a_per_m())
+    }
+    fn input_a_per_m(&self) -> f64 {
+        // (on the grid's own lines, equal or not)
+        self.relays
+            .field
+            .field_of(self.relays.state.input_normalized())
+    }
+    fn preview_solve(&self, a: f64, r: f64) -> (f64, f64) {
+        if self.susceptibility.iter().all(|&c| c == 0.0) {
+            return self.relays.preview_solve(a, r);
+        }
+        let h0 = self.input_a_per_m();
+        let rising = a * h0 + self.output_a_per_m() < r;
+        let n = self.lines_a_per_m.len() - 1;
+        // The piece holding h0 (on a line: the one the path enters).
+        let mut k = (1..=n + 1)
+            .find(|&k| {
+                let (lo, hi, _) = self.piece(k);
+                if rising {
+                    h0 >= lo && h0 < hi
+                } else {
+                    h0 > lo && h0 <= hi
+                }
+            })
+            .unwrap_or(0);
+        loop {
+            let (lo, hi, chi) = self.piece(k);
+            // R(h) = R(anchor) + χ (h − anchor) on this piece.
+            let anchor = if lo.is_finite() { lo } else { hi };
+            let c = self.reversible(anchor) - chi * anchor;
+            let (h, m) = self.relays.preview_solve(a + chi, r - c);
+            let inside = if rising { h <= hi } else { h >= lo };
+            let last = if rising { k == n + 1 } else { k == 0 };
+            if inside || last {
+                return (h, m + self.reversible(h));
+            }
+            k = if rising { k + 1 } else { k - 1 };
+        }
+    }
+    fn commit(&mut self, h_a_per_m: f64) -> f64 {
+        self.relays.commit(h_a_per_m) + self.reversible(h_a_per_m)
+    }
+}

@@ -503,6 +503,18 @@ impl RelayPreisach {
     }
 }
 
+/// The reversible part `R(h) = Σ_k χ_k (clamp(h, l_k, l_{k+1}) − (l_k + l_{k+1}) / 2)` in f64,
+/// evaluated from its definition in the field (`lines`: the `L + 1` grid lines, `chi`: one
+/// susceptibility per interval) — no normalized input, no tables: the check of the core's
+/// `PreisachMeasure::with_reversible`.
+pub fn reversible_a_per_m(lines_a_per_m: &[f64], susceptibility: &[f64], h_a_per_m: f64) -> f64 {
+    lines_a_per_m
+        .windows(2)
+        .zip(susceptibility)
+        .map(|(w, chi)| chi * (h_a_per_m.clamp(w[0], w[1]) - 0.5 * (w[0] + w[1])))
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

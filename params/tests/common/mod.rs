@@ -175,6 +175,23 @@ pub fn cases() -> Vec<Case> {
             }),
         },
         Case {
+            name: "reversible_wrong_count",
+            field: "preisach.reversible_susceptibility",
+            reason_contains:
+                "25 levels need 25 susceptibilities (one per interval), the file has 24",
+            text: edit(|v| v["preisach"]["reversible_susceptibility"] = Value::from(vec![0.5; 24])),
+        },
+        Case {
+            name: "reversible_negative",
+            field: "preisach.reversible_susceptibility[3]",
+            reason_contains: "must be >= 0",
+            text: edit(|v| {
+                let mut chi = vec![0.5; 25];
+                chi[3] = -0.1;
+                v["preisach"]["reversible_susceptibility"] = Value::from(chi);
+            }),
+        },
+        Case {
             name: "grid_lines_wrong_count",
             field: "preisach.grid_lines_a_per_m",
             reason_contains: "25 levels need 26 grid lines, the file has 25",
