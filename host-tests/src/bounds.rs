@@ -55,6 +55,17 @@
 //! the density ([`line_density_bound_a_per_m`]), an input perturbation `δx` moves the output by at
 //! most `2 λ δx` along a monotone branch.
 
+//! # The reversible part
+//!
+//! With a reversible part (`PreisachMeasure::with_reversible`) the output adds
+//! `R(x) = R_k + ρ_k (x − k)`: the stored line value and rise are each one rounding of an f64
+//! value `<= ½ Σρ` (`Σρ` the rises' sum, [`reversible_rises_a_per_m`]), the evaluation one product
+//! and two additions: `<= 4 u Σρ` per evaluation, added to every output, increment and residual
+//! budget above (twice where two evaluations meet). In the solve the piece's linear coefficient
+//! gains `ρ_k`, so the slope along which the root's error moves is `2 λ + a Δ + ρ_max`
+//! ([`output_slope_bound_a_per_m`] without the `a Δ`). `W` already includes `½ Σρ`
+//! (`saturation_a_per_m`). Without a reversible part every added term is 0.
+
 use magctl::preisach::{PreisachMeasure, LEVELS};
 
 /// f32 unit roundoff `u = 2⁻²⁴`.
@@ -72,12 +83,38 @@ pub fn everett_rounding_a_per_m(measure: &PreisachMeasure) -> f64 {
 /// included): `(50 len + 2) u W`, A/m (module docs).
 pub fn output_rounding_a_per_m(measure: &PreisachMeasure, len: usize) -> f64 {
     (50.0 * len as f64 + 2.0) * F32_UNIT_ROUNDOFF * measure.saturation_a_per_m() as f64
+        + reversible_rounding_a_per_m(measure)
 }
 
 /// Worst-case rounding of an output increment made of `terms` fresh Everett terms on top of a
 /// shared stored vertex: `2 terms · 25 u W + 2 u W`, A/m (module docs).
 pub fn increment_rounding_a_per_m(measure: &PreisachMeasure, terms: usize) -> f64 {
     (50.0 * terms as f64 + 2.0) * F32_UNIT_ROUNDOFF * measure.saturation_a_per_m() as f64
+        + 2.0 * reversible_rounding_a_per_m(measure)
+}
+
+/// The rises `ρ_k = χ_k Δ_k` of the reversible part over each interval, A/m (all 0 without one).
+pub fn reversible_rises_a_per_m(measure: &PreisachMeasure) -> Vec<f64> {
+    measure
+        .reversible_susceptibility()
+        .iter()
+        .enumerate()
+        .map(|(k, &chi)| chi as f64 * measure.interval_width_a_per_m(k) as f64)
+        .collect()
+}
+
+/// Rounding of one evaluation of the reversible part: `4 u Σρ`, A/m (module docs).
+pub fn reversible_rounding_a_per_m(measure: &PreisachMeasure) -> f64 {
+    4.0 * F32_UNIT_ROUNDOFF * reversible_rises_a_per_m(measure).iter().sum::<f64>()
+}
+
+/// `|dM/dx| <= 2 λ + ρ_max` along a monotone branch (normalized input), A/m: what an input
+/// perturbation `δx` can do to the output.
+pub fn output_slope_bound_a_per_m(measure: &PreisachMeasure) -> f64 {
+    2.0 * line_density_bound_a_per_m(measure)
+        + reversible_rises_a_per_m(measure)
+            .into_iter()
+            .fold(0.0, f64::max)
 }
 
 /// Worst-case residual `|a·h + M - r|` of the core's solve (and, with `a = 0`, `|M - m_target|` of
@@ -91,13 +128,13 @@ pub fn solve_rounding_a_per_m(
     let u = F32_UNIT_ROUNDOFF;
     let w = measure.saturation_a_per_m() as f64;
     // `a Δ` per unit of normalized input; on a nonuniform grid the widest interval's width.
-    let slope =
-        2.0 * line_density_bound_a_per_m(measure) + a * measure.widest_interval_a_per_m() as f64;
+    let slope = output_slope_bound_a_per_m(measure) + a * measure.widest_interval_a_per_m() as f64;
     let h_max = h_a_per_m
         .abs()
         .max(measure.h_min_a_per_m().abs() as f64)
         .max(measure.h_max_a_per_m().abs() as f64);
     200.0 * u * w
+        + 2.0 * reversible_rounding_a_per_m(measure)
         + slope * (LEVELS as f64 + 8.0) * u
         + 4.0 * u * a * h_max
         + 2.0 * u * r_a_per_m.abs()
@@ -128,6 +165,16 @@ pub fn line_density_bound_a_per_m(measure: &PreisachMeasure) -> f64 {
         lambda = lambda.max(row).max(column);
     }
     lambda
+}
+
+/// f32 rounding of the core's dynamic model in displacement, m: about 16 roundings of relative
+/// size `ε = 2⁻²⁴` per step on values bounded by the stroke, damped by the mechanical contraction
+/// `e^{-ξ ω0 h}` per step, so at most `16 ε · stroke / (ξ ω0 h)` (`h` = 1 / `rate_hz`).
+pub fn model_rounding_m(actuator: &magctl::params::Actuator, rate_hz: f64) -> f64 {
+    let xi_omega_h =
+        actuator.damping_ratio as f64 * 2.0 * std::f64::consts::PI * actuator.resonance_hz as f64
+            / rate_hz;
+    16.0 * f32::EPSILON as f64 * actuator.stroke_m() as f64 / xi_omega_h
 }
 
 /// Rounding of the reference's f64 running sum after `switches` relay switches: each switch is

@@ -99,22 +99,22 @@ pub fn start_plant<'f>(
     // The controller's reversible part (none: all zero), evaluated by the reference's own f64
     // definition on the controller's grid lines.
     let measure = control.measure();
-    let hysteresis = ReversibleRelayHysteresis {
-        relays: RelayHysteresis {
+    let hysteresis = ReversibleRelayHysteresis::new(
+        RelayHysteresis {
             field,
             state: field.negative_saturation(),
         },
-        lines_a_per_m: measure
+        measure
             .grid_lines_a_per_m()
             .iter()
             .map(|&h| h as f64)
             .collect(),
-        susceptibility: measure
+        measure
             .reversible_susceptibility()
             .iter()
             .map(|&c| c as f64)
             .collect(),
-    };
+    );
     ReferencePlant::at_state(
         constants,
         hysteresis,

@@ -21,25 +21,20 @@
 //! The RK4 reference's own time error (`(δ c1 / c0)⁴ ≈ 10⁻⁴` relative per fast-mode substep, with
 //! `δ = h / 100`) is far below all three.
 
-use actuator_params::ActuatorParams;
-use host_tests::reference::dynamics::{
-    simulate_held, PlantConstants, ReferencePlant, RelayHysteresis,
-};
+mod common;
+
+use common::{baked_file_params, core_displacements, max_abs_diff, reference_displacements};
+use host_tests::bounds::model_rounding_m;
+use host_tests::reference::dynamics::RelayHysteresis;
 use host_tests::reference::preisach::RelayPreisach;
 use magctl::model::{DynamicModel, StaticModel};
-use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS, BAKED_PARAMETERS_SOURCE};
+use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
 use std::f64::consts::PI;
-use std::path::Path;
 
 const CONTROL_RATE_HZ: f64 = 10_000.0;
 const SUBSTEPS: usize = 100;
 const BIAS_A: f64 = 0.5;
 const AMPLITUDE_A: f64 = 0.45;
-
-fn file_params() -> ActuatorParams {
-    ActuatorParams::load(Path::new(BAKED_PARAMETERS_SOURCE))
-        .expect("the baked parameter file is readable")
-}
 
 fn stroke_m() -> f64 {
     BAKED_PARAMETERS.actuator.stroke_m() as f64
@@ -85,44 +80,19 @@ fn random_band_limited_currents(duration_s: f64, seed: u64) -> Vec<f64> {
 /// The core model at `multiplier × 10 kHz` on the held current; displacement at the end of
 /// every 10 kHz period.
 fn run_core(currents: &[f64], multiplier: usize) -> Vec<f64> {
-    let step_s = (1.0 / (CONTROL_RATE_HZ * multiplier as f64)) as f32;
-    let model = DynamicModel::new(&BAKED_MEASURE, &BAKED_PARAMETERS.actuator, step_s);
-    let mut state = model.equilibrium::<64>(BAKED_MEASURE.demagnetized(), currents[0] as f32);
-    currents
-        .iter()
-        .map(|&i| {
-            let mut y = 0.0;
-            for _ in 0..multiplier {
-                y = model.step(&mut state, i as f32).displacement_m as f64;
-            }
-            y
-        })
-        .collect()
+    core_displacements(&BAKED_MEASURE, currents, CONTROL_RATE_HZ, multiplier)
 }
 
 fn run_reference(currents: &[f64], field: &RelayPreisach) -> Vec<f64> {
-    let consts = PlantConstants::from_params(&file_params());
     let hysteresis = RelayHysteresis {
         field,
         state: field.demagnetized(),
     };
-    let mut plant = ReferencePlant::equilibrium(consts, hysteresis, currents[0]);
-    simulate_held(&mut plant, 1.0 / CONTROL_RATE_HZ, SUBSTEPS, currents)
-        .iter()
-        .map(|s| s.displacement_m)
-        .collect()
-}
-
-fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    reference_displacements(hysteresis, currents, CONTROL_RATE_HZ, SUBSTEPS)
 }
 
 fn f32_budget_m() -> f64 {
-    let a = &BAKED_PARAMETERS.actuator;
-    let xi_omega_h = a.damping_ratio as f64 * 2.0 * PI * a.resonance_hz as f64 / CONTROL_RATE_HZ;
-    16.0 * f32::EPSILON as f64 * stroke_m() / xi_omega_h
+    model_rounding_m(&BAKED_PARAMETERS.actuator, CONTROL_RATE_HZ)
 }
 
 struct Fields {
@@ -131,7 +101,7 @@ struct Fields {
 }
 
 fn fields() -> Fields {
-    let p = file_params();
+    let p = baked_file_params();
     let w = &p.preisach.weights_a_per_m;
     let (lo, hi) = (p.preisach.h_min_a_per_m, p.preisach.h_max_a_per_m);
     Fields {

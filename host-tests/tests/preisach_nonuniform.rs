@@ -20,6 +20,9 @@
 //!   `aΔ` term takes the widest interval), and the field returned maps back to the committed
 //!   normalized input within `4 u L`.
 
+mod common;
+
+use common::{clustered_lines, field_path};
 use host_tests::bounds::{
     input_rounding_normalized, line_density_bound_a_per_m, output_rounding_a_per_m,
     relay_sum_rounding_a_per_m, solve_rounding_a_per_m,
@@ -30,22 +33,6 @@ use magctl::preisach::{PreisachMeasure, PreisachState, LEVELS};
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
 
-/// Lines over the baked range, dense around the middle (where a biased actuator's loops reverse)
-/// and `ratio` times wider at the ends: `h(t) = c + r · sign(s) |s|^p`, `s = 2t − 1`.
-fn clustered_lines(power: f64) -> [f32; LEVELS + 1] {
-    let p = BAKED_PARAMETERS.preisach;
-    let (lo, hi) = (p.h_min_a_per_m as f64, p.h_max_a_per_m as f64);
-    let (c, r) = (0.5 * (lo + hi), 0.5 * (hi - lo));
-    let mut lines = [0.0f32; LEVELS + 1];
-    for (k, line) in lines.iter_mut().enumerate() {
-        let s = 2.0 * k as f64 / LEVELS as f64 - 1.0;
-        *line = (c + r * s.signum() * s.abs().powf(power)) as f32;
-    }
-    lines[0] = p.h_min_a_per_m;
-    lines[LEVELS] = p.h_max_a_per_m;
-    lines
-}
-
 fn measures(power: f64, k: usize) -> (PreisachMeasure, RelayPreisach) {
     let p = BAKED_PARAMETERS.preisach;
     let lines = clustered_lines(power);
@@ -54,40 +41,6 @@ fn measures(power: f64, k: usize) -> (PreisachMeasure, RelayPreisach) {
     let lines64: Vec<f64> = lines.iter().map(|&h| h as f64).collect();
     let reference = RelayPreisach::with_lines(&w, &lines64, k).expect("valid lines");
     (measure, reference)
-}
-
-/// A piecewise-monotone field path (A/m) with random turning points, some beyond the range, and
-/// decaying oscillations around random centres (deep staircases), sampled along each segment.
-fn field_path(rng: &mut Xoshiro256PlusPlus, measure: &PreisachMeasure) -> Vec<f32> {
-    let (lo, hi) = (
-        measure.h_min_a_per_m() as f64,
-        measure.h_max_a_per_m() as f64,
-    );
-    let span = hi - lo;
-    let mut turning = Vec::new();
-    for _ in 0..12 {
-        if rng.random::<f64>() < 0.5 {
-            turning.push(lo - 0.05 * span + 1.1 * span * rng.random::<f64>());
-        } else {
-            let centre = lo + span * (0.3 + 0.4 * rng.random::<f64>());
-            let mut amplitude = 0.3 * span * rng.random::<f64>();
-            let mut sign = 1.0;
-            for _ in 0..8 {
-                turning.push(centre + sign * amplitude);
-                amplitude *= 0.7;
-                sign = -sign;
-            }
-        }
-    }
-    let mut path = Vec::new();
-    let mut from = lo;
-    for &to in &turning {
-        for n in 1..=6 {
-            path.push((from + (to - from) * n as f64 / 6.0) as f32);
-        }
-        from = to;
-    }
-    path
 }
 
 #[test]

@@ -5,48 +5,33 @@
 //!
 //! # Tolerances
 //!
-//! The operator tolerances are those of `preisach_nonuniform.rs` (reference discretization, the
-//! core's f32 rounding, the input-map difference), with two terms for `R`:
-//! * its rounding: the line values and rises are each rounded once from f64, and one evaluation
-//!   adds one multiplication and two additions of values `<= ½ Σρ`: `4 u Σρ`;
-//! * the input-map difference `4 u L` moves `R` by at most `ρ_max · 4 u L`.
-//!
-//! The solve's residual bound gains `ρ_max (L + 8) u` (the piece's linear coefficient carries
-//! `ρ_k` beside `a Δ_k`).
+//! The tolerances are those of `preisach_nonuniform.rs` (reference discretization, the core's f32
+//! rounding, the input-map difference), whose formulas in `host_tests::bounds` carry `R`'s terms
+//! (its rounding, `4 u Σρ` per evaluation; the slope `2 λ + ρ_max` along which an input error
+//! moves the output; the solve's linear coefficient gaining `ρ_k`). `R` alone is compared with
+//! its definition within its rounding plus `ρ_max` times the input-map difference `4 u L`.
 //!
 //! The dynamic model with `R` is compared with the RK4 reference whose solve of
 //! `a·h + Γ(h) + R(h) = r` walks `R`'s linear pieces with the relay operator's exact solve
 //! (`reference::dynamics::ReversibleRelayHysteresis`), under the derived budget of `dynamics.rs`.
 
+mod common;
+
+use common::{
+    clustered_lines, core_displacements, field_path, max_abs_diff, reference_displacements,
+};
 use host_tests::bounds::{
-    input_rounding_normalized, line_density_bound_a_per_m, output_rounding_a_per_m,
-    relay_sum_rounding_a_per_m, solve_rounding_a_per_m, F32_UNIT_ROUNDOFF,
+    input_rounding_normalized, model_rounding_m, output_rounding_a_per_m,
+    output_slope_bound_a_per_m, relay_sum_rounding_a_per_m, reversible_rises_a_per_m,
+    reversible_rounding_a_per_m, solve_rounding_a_per_m, F32_UNIT_ROUNDOFF,
 };
-use host_tests::reference::dynamics::{
-    simulate_held, PlantConstants, ReferencePlant, RelayHysteresis, ReversibleRelayHysteresis,
-};
+use host_tests::reference::dynamics::{RelayHysteresis, ReversibleRelayHysteresis};
 use host_tests::reference::preisach::{reversible_a_per_m, RelayPreisach, RelayState};
-use magctl::model::DynamicModel;
-use magctl::params::{BAKED_PARAMETERS, BAKED_PARAMETERS_SOURCE};
+use magctl::params::BAKED_PARAMETERS;
 use magctl::preisach::{PreisachMeasure, PreisachState, Saturation, LEVELS};
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
 use std::f64::consts::PI;
-
-/// Lines over the baked range: equal (`power = 1`) or dense in the middle (`power > 1`).
-fn lines(power: f64) -> [f32; LEVELS + 1] {
-    let p = BAKED_PARAMETERS.preisach;
-    let (lo, hi) = (p.h_min_a_per_m as f64, p.h_max_a_per_m as f64);
-    let (c, r) = (0.5 * (lo + hi), 0.5 * (hi - lo));
-    let mut lines = [0.0f32; LEVELS + 1];
-    for (k, line) in lines.iter_mut().enumerate() {
-        let s = 2.0 * k as f64 / LEVELS as f64 - 1.0;
-        *line = (c + r * s.signum() * s.abs().powf(power)) as f32;
-    }
-    lines[0] = p.h_min_a_per_m;
-    lines[LEVELS] = p.h_max_a_per_m;
-    lines
-}
 
 /// Susceptibility profiles whose reversible part spans `share × Σw` over the grid: a bell
 /// (an anhysteretic curve, steep in the middle), a constant (the paper's `χ_r H`), and random.
@@ -86,63 +71,21 @@ struct Case {
     reference: RelayPreisach,
     lines64: Vec<f64>,
     chi64: Vec<f64>,
-    rise_max: f64,
-    rise_total: f64,
 }
 
 fn case(power: f64, profile: &str, share: f64, k: usize, seed: u64) -> Case {
     let p = BAKED_PARAMETERS.preisach;
-    let lines = lines(power);
+    let lines = clustered_lines(power);
     let chi = susceptibility(profile, &lines, share, seed);
     let measure = PreisachMeasure::with_lines(&p.weights_a_per_m, &lines).with_reversible(&chi);
     let w: Vec<f64> = p.weights_a_per_m.iter().map(|&w| w as f64).collect();
     let lines64: Vec<f64> = lines.iter().map(|&h| h as f64).collect();
-    let chi64: Vec<f64> = chi.iter().map(|&c| c as f64).collect();
-    let rises: Vec<f64> = (0..LEVELS)
-        .map(|k| chi64[k] * (lines64[k + 1] - lines64[k]))
-        .collect();
     Case {
         reference: RelayPreisach::with_lines(&w, &lines64, k).expect("valid lines"),
         measure,
-        rise_max: rises.iter().cloned().fold(0.0, f64::max),
-        rise_total: rises.iter().sum(),
         lines64,
-        chi64,
+        chi64: chi.iter().map(|&c| c as f64).collect(),
     }
-}
-
-/// A piecewise-monotone field path with random turning points (some beyond the range) and
-/// decaying oscillations, sampled along each segment.
-fn field_path(rng: &mut Xoshiro256PlusPlus, measure: &PreisachMeasure) -> Vec<f32> {
-    let (lo, hi) = (
-        measure.h_min_a_per_m() as f64,
-        measure.h_max_a_per_m() as f64,
-    );
-    let span = hi - lo;
-    let mut turning = Vec::new();
-    for _ in 0..10 {
-        if rng.random::<f64>() < 0.5 {
-            turning.push(lo - 0.05 * span + 1.1 * span * rng.random::<f64>());
-        } else {
-            let centre = lo + span * (0.3 + 0.4 * rng.random::<f64>());
-            let mut amplitude = 0.3 * span * rng.random::<f64>();
-            let mut sign = 1.0;
-            for _ in 0..6 {
-                turning.push(centre + sign * amplitude);
-                amplitude *= 0.7;
-                sign = -sign;
-            }
-        }
-    }
-    let mut path = Vec::new();
-    let mut from = lo;
-    for &to in &turning {
-        for n in 1..=5 {
-            path.push((from + (to - from) * n as f64 / 5.0) as f32);
-        }
-        from = to;
-    }
-    path
 }
 
 /// No reversible part (all `χ = 0`) is the measure without one, bit for bit, in every operation.
@@ -179,7 +122,9 @@ fn zero_susceptibility_changes_nothing() {
 fn the_reversible_part_is_its_definition() {
     for (power, profile) in [(1.0, "bell"), (1.7, "random"), (0.7, "constant")] {
         let c = case(power, profile, 0.3, 1, 9);
-        let tol = 4.0 * F32_UNIT_ROUNDOFF * c.rise_total + c.rise_max * input_rounding_normalized();
+        let rises = reversible_rises_a_per_m(&c.measure);
+        let rise_max = rises.iter().cloned().fold(0.0, f64::max);
+        let tol = reversible_rounding_a_per_m(&c.measure) + rise_max * input_rounding_normalized();
         let (lo, hi) = (c.lines64[0], c.lines64[LEVELS]);
         let mut fields: Vec<f64> = c.lines64.clone();
         fields
@@ -193,7 +138,7 @@ fn the_reversible_part_is_its_definition() {
             );
         }
         // Saturation: Σw + ½Σρ.
-        let expected = c.reference.saturation_a_per_m() + 0.5 * c.rise_total;
+        let expected = c.reference.saturation_a_per_m() + 0.5 * rises.iter().sum::<f64>();
         assert!(
             (c.measure.saturation_a_per_m() as f64 - expected).abs()
                 <= 4.0 * F32_UNIT_ROUNDOFF * expected
@@ -207,7 +152,7 @@ fn forward_matches_the_reference_plus_the_definition() {
     for (power, profile, seed) in [(1.0, "bell", 1), (1.6, "random", 2), (0.7, "constant", 3)] {
         let c = case(power, profile, 0.4, 8, seed);
         let bound = c.reference.discretization_bound_a_per_m();
-        let lambda = line_density_bound_a_per_m(&c.measure);
+        let slope = output_slope_bound_a_per_m(&c.measure);
         let total = c.reference.saturation_a_per_m();
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed + 100);
         let mut worst = 0.0f64;
@@ -227,10 +172,7 @@ fn forward_matches_the_reference_plus_the_definition() {
                     relay.switch_count(),
                     c.reference.relay_count(),
                 )
-                + (2.0 * lambda + c.rise_max)
-                    * input_rounding_normalized()
-                    * (core.len() + 1) as f64
-                + 4.0 * F32_UNIT_ROUNDOFF * c.rise_total;
+                + slope * input_rounding_normalized() * (core.len() + 1) as f64;
             let error = (m_core - m_ref).abs();
             assert!(
                 error <= tol,
@@ -273,8 +215,7 @@ fn inverse_and_solve_stay_exact() {
                 .expect("finite");
             assert_eq!(sol.saturation, Saturation::None);
             let (h, m) = (sol.h_a_per_m as f64, sol.m_a_per_m as f64);
-            let tol = solve_rounding_a_per_m(measure, a, r, h)
-                + c.rise_max * (LEVELS as f64 + 8.0) * F32_UNIT_ROUNDOFF;
+            let tol = solve_rounding_a_per_m(measure, a, r, h);
             assert!(
                 (a * h + m - r).abs() <= tol,
                 "{profile} trial {trial}: a {a}, r {r}: residual {} > {tol}",
@@ -306,49 +247,16 @@ fn inverse_and_solve_stay_exact() {
 
 const CONTROL_RATE_HZ: f64 = 10_000.0;
 
-fn run_core(measure: &PreisachMeasure, currents: &[f64], multiplier: usize) -> Vec<f64> {
-    let step_s = (1.0 / (CONTROL_RATE_HZ * multiplier as f64)) as f32;
-    let model = DynamicModel::new(measure, &BAKED_PARAMETERS.actuator, step_s);
-    let mut state = model.equilibrium::<64>(measure.demagnetized(), currents[0] as f32);
-    currents
-        .iter()
-        .map(|&i| {
-            let mut y = 0.0;
-            for _ in 0..multiplier {
-                y = model.step(&mut state, i as f32).displacement_m as f64;
-            }
-            y
-        })
-        .collect()
-}
-
 fn run_reference(c: &Case, field: &RelayPreisach, currents: &[f64]) -> Vec<f64> {
-    let params =
-        actuator_params::ActuatorParams::load(std::path::Path::new(BAKED_PARAMETERS_SOURCE))
-            .expect("the baked parameter file is readable");
-    let hysteresis = ReversibleRelayHysteresis {
-        relays: RelayHysteresis {
+    let hysteresis = ReversibleRelayHysteresis::new(
+        RelayHysteresis {
             field,
             state: field.demagnetized(),
         },
-        lines_a_per_m: c.lines64.clone(),
-        susceptibility: c.chi64.clone(),
-    };
-    let mut plant = ReferencePlant::equilibrium(
-        PlantConstants::from_params(&params),
-        hysteresis,
-        currents[0],
+        c.lines64.clone(),
+        c.chi64.clone(),
     );
-    simulate_held(&mut plant, 1.0 / CONTROL_RATE_HZ, 100, currents)
-        .iter()
-        .map(|s| s.displacement_m)
-        .collect()
-}
-
-fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    reference_displacements(hysteresis, currents, CONTROL_RATE_HZ, 100)
 }
 
 /// The dynamic model `H' + M' = c1 (I − H/c0)` with `M = Γ[H] + R(H)` against the RK4
@@ -366,21 +274,22 @@ fn dynamic_model_with_a_reversible_part_matches_the_reference() {
     let currents: Vec<f64> = (0..n)
         .map(|k| 0.5 + 0.45 * (2.0 * PI * 100.0 * k as f64 / CONTROL_RATE_HZ).sin())
         .collect();
-    let core = run_core(&c.measure, &currents, 1);
-    let core_half = run_core(&c.measure, &currents, 2);
+    let core = core_displacements(&c.measure, &currents, CONTROL_RATE_HZ, 1);
+    let core_half = core_displacements(&c.measure, &currents, CONTROL_RATE_HZ, 2);
     let reference = run_reference(&c, &fine, &currents);
     let reference_coarse = run_reference(&c, &coarse, &currents);
     let stroke = BAKED_PARAMETERS.actuator.stroke_m() as f64;
-    let a = &BAKED_PARAMETERS.actuator;
-    let xi_omega_h = a.damping_ratio as f64 * 2.0 * PI * a.resonance_hz as f64 / CONTROL_RATE_HZ;
-    let f32_term = 16.0 * f32::EPSILON as f64 * stroke / xi_omega_h;
+    let f32_term = model_rounding_m(&BAKED_PARAMETERS.actuator, CONTROL_RATE_HZ);
     let error = max_abs_diff(&core, &reference);
     let budget = 2.35 * max_abs_diff(&core, &core_half)
         + 2.0 * max_abs_diff(&reference_coarse, &reference)
         + f32_term;
     // The reversible part matters here: without it the core is far from this reference.
     let plain = PreisachMeasure::new(&p.weights_a_per_m, p.h_min_a_per_m, p.h_max_a_per_m);
-    let without = max_abs_diff(&run_core(&plain, &currents, 1), &reference);
+    let without = max_abs_diff(
+        &core_displacements(&plain, &currents, CONTROL_RATE_HZ, 1),
+        &reference,
+    );
     println!(
         "with R: |y_core - y_ref| = {:.3e} m ({:.3} % of stroke), budget {:.3e} m; the core without R: {:.3e} m",
         error,

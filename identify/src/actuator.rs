@@ -281,11 +281,8 @@ pub fn identify(
         saturation_magnetostriction: a.saturation_magnetostriction,
         saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m,
     };
-    let grid = match &base.preisach.grid_lines_a_per_m {
-        Some(lines) => Grid::from_line_slice(lines)
-            .map_err(|e| FitError(format!("{base_name}: preisach.grid_lines_a_per_m: {e}")))?,
-        None => Grid::uniform(base.preisach.h_min_a_per_m, base.preisach.h_max_a_per_m),
-    };
+    let grid =
+        Grid::of_params(&base.preisach).map_err(|e| FitError(format!("{base_name}: {e}")))?;
     let zero_band_m = options.zero_band_fraction * model.stroke_m();
     let sensor_offset_m = displacement_offset_m(dataset, a.coil_factor_per_m, &grid);
     let mut fields = Vec::new();

@@ -64,6 +64,16 @@ impl Grid {
         Grid::with_lines(lines)
     }
 
+    /// The grid of a parameter file's `preisach` section: its lines, or equal intervals of its
+    /// range. The error names the field.
+    pub fn of_params(p: &actuator_params::Preisach) -> Result<Self, String> {
+        match &p.grid_lines_a_per_m {
+            Some(lines) => Grid::from_line_slice(lines)
+                .map_err(|e| format!("preisach.grid_lines_a_per_m: {e}")),
+            None => Ok(Grid::uniform(p.h_min_a_per_m, p.h_max_a_per_m)),
+        }
+    }
+
     /// The grid lines (equally spaced when none were given).
     pub fn lines(&self) -> [f64; LEVELS + 1] {
         match self.lines {

@@ -345,15 +345,12 @@ pub fn fit(
     // coefficient of interval k's ramp in normalized input, `ŵ_k` its width in units of Δ), are
     // smoothed between neighbouring intervals like the densities, relative to `1 / L` (the slope
     // of a straight line through the output range).
-    let widths: Vec<f64> = {
-        let lines = grid.lines();
-        let mean = grid.cell_width();
-        (0..LEVELS)
-            .map(|k| (lines[k + 1] - lines[k]) / mean)
-            .collect()
-    };
     let slope0 = options.reversible.first_slope();
     if options.reversible.is_piecewise() {
+        let lines = grid.lines();
+        let widths: Vec<f64> = (0..LEVELS)
+            .map(|k| (lines[k + 1] - lines[k]) / grid.cell_width())
+            .collect();
         let c_ref = 1.0 / LEVELS as f64;
         let c = options.smoothness.max(REVERSIBLE_SMOOTHNESS_MIN)
             / ((LEVELS - 1) as f64 * c_ref * c_ref);

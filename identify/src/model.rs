@@ -64,16 +64,19 @@ impl PreisachModel {
     /// Predicts the output for an input sequence from `initial`.
     pub fn predict(&self, input: &[f64], initial: InitialState) -> Vec<f64> {
         let grid = self.grid();
+        let rises = self
+            .reversible_slopes
+            .as_deref()
+            .map(|slopes| reversible_rises(&grid, slopes));
         let mut out = Vec::with_capacity(input.len());
         run_experiment(&grid, input, initial, |t, x, f| {
             out.push(
                 crate::cells::output(f, &self.weights)
                     + self.offset
                     + self.slope * grid.equivalent_input(input[t], x)
-                    + self
-                        .reversible_slopes
+                    + rises
                         .as_deref()
-                        .map_or(0.0, |slopes| piecewise_reversible(&grid, slopes, x)),
+                        .map_or(0.0, |rises| piecewise_reversible(rises, x)),
             );
         });
         out
@@ -198,14 +201,25 @@ impl PreisachModel {
     }
 }
 
-/// The piecewise reversible part at normalized input `x`: `Σ_k χ_k width_k (clamp(x - k, 0, 1) - ½)`
-/// (= `Σ_k χ_k (clamp(u, line_k, line_k+1) - mid_k)` in the input `u`; flat beyond the grid).
-pub fn piecewise_reversible(grid: &Grid, slopes: &[f64], x: f64) -> f64 {
+/// The rises `ρ_k = χ_k width_k` of the piecewise reversible part over each interval of `grid`
+/// (`slopes`: the `χ_k`, output units per input unit).
+pub fn reversible_rises(grid: &Grid, slopes: &[f64]) -> Vec<f64> {
     let lines = grid.lines();
     slopes
         .iter()
         .enumerate()
-        .map(|(k, chi)| chi * (lines[k + 1] - lines[k]) * crate::design::ramp(x, k))
+        .map(|(k, chi)| chi * (lines[k + 1] - lines[k]))
+        .collect()
+}
+
+/// The piecewise reversible part at normalized input `x` from its rises
+/// ([`reversible_rises`]): `Σ_k ρ_k (clamp(x - k, 0, 1) - ½)` (= `Σ_k χ_k (clamp(u, line_k,
+/// line_k+1) - mid_k)` in the input `u`; flat beyond the grid, `½ Σ ρ` at its top).
+pub fn piecewise_reversible(rises: &[f64], x: f64) -> f64 {
+    rises
+        .iter()
+        .enumerate()
+        .map(|(k, rho)| rho * crate::design::ramp(x, k))
         .sum()
 }
 

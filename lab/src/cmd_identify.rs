@@ -235,20 +235,12 @@ pub fn run(args: &Args) -> Result<()> {
         base.actuator.saturation_magnetization_a_per_m
     );
     if let Some(chi) = &id.params.preisach.reversible_susceptibility {
-        let lines = maglab_identify::design::Grid::uniform(
-            id.params.preisach.h_min_a_per_m,
-            id.params.preisach.h_max_a_per_m,
-        );
-        let lines = match &id.params.preisach.grid_lines_a_per_m {
-            Some(l) => maglab_identify::design::Grid::from_line_slice(l).unwrap_or(lines),
-            None => lines,
-        }
-        .lines();
+        // R at the top of the grid: ½ Σ χ_k Δ_k.
+        let grid = maglab_identify::design::Grid::of_params(&id.params.preisach)
+            .map_err(|e| anyhow!("identified parameters: {e}"))?;
         let half_span: f64 = 0.5
-            * chi
+            * maglab_identify::model::reversible_rises(&grid, chi)
                 .iter()
-                .enumerate()
-                .map(|(k, c)| c * (lines[k + 1] - lines[k]))
                 .sum::<f64>();
         println!(
             "reversible part: susceptibility {:.3e} to {:.3e}, R at the top of the grid {:.6e} A/m \

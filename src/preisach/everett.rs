@@ -383,9 +383,7 @@ impl PreisachMeasure {
     /// `R` at normalized input `x ∈ [0, LEVELS]`.
     #[inline(always)]
     pub(crate) fn reversible_at(&self, x: f32) -> f32 {
-        let (k, s) = split(x);
-        let _ = s;
-        self.reversible_in(x, k)
+        self.reversible_in(x, split(x).0)
     }
     /// `R` at normalized input `x` known to lie in interval `k` (`k <= x <= k + 1`):
     /// `R_k + ρ_k (x − k)`.

@@ -244,15 +244,30 @@ impl MonotoneHysteresis for RelayHysteresis<'_> {
 /// the first one that holds it is the answer).
 #[derive(Clone)]
 pub struct ReversibleRelayHysteresis<'a> {
-    /// The relay operator and its state.
-    pub relays: RelayHysteresis<'a>,
-    /// The `L + 1` grid lines, A/m.
-    pub lines_a_per_m: Vec<f64>,
-    /// `χ_k`, one per interval.
-    pub susceptibility: Vec<f64>,
+    relays: RelayHysteresis<'a>,
+    lines_a_per_m: Vec<f64>,
+    susceptibility: Vec<f64>,
+    /// Whether any `χ_k` is nonzero (without, the solve is the relay operator's own).
+    has_reversible: bool,
 }
 
-impl ReversibleRelayHysteresis<'_> {
+impl<'a> ReversibleRelayHysteresis<'a> {
+    /// The relay operator with its state, plus `R` on the `L + 1` grid lines (A/m) with one
+    /// susceptibility `χ_k` per interval.
+    pub fn new(
+        relays: RelayHysteresis<'a>,
+        lines_a_per_m: Vec<f64>,
+        susceptibility: Vec<f64>,
+    ) -> Self {
+        let has_reversible = susceptibility.iter().any(|&c| c != 0.0);
+        ReversibleRelayHysteresis {
+            relays,
+            lines_a_per_m,
+            susceptibility,
+            has_reversible,
+        }
+    }
+
     fn reversible(&self, h_a_per_m: f64) -> f64 {
         super::preisach::reversible_a_per_m(&self.lines_a_per_m, &self.susceptibility, h_a_per_m)
     }
@@ -283,7 +298,7 @@ impl MonotoneHysteresis for ReversibleRelayHysteresis<'_> {
             .field_of(self.relays.state.input_normalized())
     }
     fn preview_solve(&self, a: f64, r: f64) -> (f64, f64) {
-        if self.susceptibility.iter().all(|&c| c == 0.0) {
+        if !self.has_reversible {
             return self.relays.preview_solve(a, r);
         }
         let h0 = self.input_a_per_m();
