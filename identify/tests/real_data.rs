@@ -49,25 +49,25 @@ fn bh_loops_fit_two_amplitudes_predict_the_others() {
             "mnzn-ferrite.csv",
             LineChoice::Auto,
             Reversible::Piecewise,
-            0.0096,
+            0.0099,
         ),
         (
             "mnzn-hp-ferrite.csv",
             LineChoice::Auto,
             Reversible::Piecewise,
-            0.011,
+            0.0087,
         ),
         (
             "mnzn-ferrite.csv",
             LineChoice::Auto,
             Reversible::Linear,
-            0.014,
+            0.023,
         ),
         (
             "mnzn-hp-ferrite.csv",
             LineChoice::Auto,
             Reversible::Linear,
-            0.028,
+            0.039,
         ),
     ] {
         let options = FitOptions {

@@ -48,8 +48,8 @@ pub struct FitArgs {
     margin: f64,
     /// Where the 24 interior grid lines go: equal-output (each interval carries the same share of
     /// the output change the fit rows show: narrow where the loops are steep), uniform, or auto
-    /// (whichever predicts held-back fit rows better: leave one experiment out, or alternate
-    /// blocks of a single experiment's fit rows; the scores are printed).
+    /// (whichever predicts held-back fit rows better: alternate blocks of every experiment's fit
+    /// rows fit and predict each other; the scores are printed).
     #[arg(long, default_value = "auto")]
     grid_lines: String,
     /// Initial memory of each experiment: auto, negative-saturation, positive-saturation,
