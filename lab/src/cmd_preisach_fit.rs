@@ -3,8 +3,9 @@
 //!
 //! `preisach-fit` reads two columns (optionally split into experiments by a group column, and
 //! with a row filter choosing the rows that enter the fit — the memory always runs over every
-//! row), fits the 325 masses (>= 0, smoothness-regularized) and optionally an affine part, and
-//! writes the model JSON, the weight heat map and measured-vs-fitted loops. The input range is
+//! row), fits the 325 masses (>= 0, smoothness-regularized) with an offset and a reversible part
+//! (by default piecewise linear, a slope >= 0 per grid interval; grid lines and smoothness chosen
+//! by validation on held-back fit rows), and writes the model JSON, the weight heat map and measured-vs-fitted loops. The input range is
 //! the data's (all rows) widened by a margin, unless `--levels-range` gives it.
 //!
 //! `preisach-predict` runs a model on a file, prints the NRMSE over the scored rows (RMS error
