@@ -416,7 +416,11 @@ pub fn parameters(candidate: &Candidate, nominal: &Nominal, range: &[f64; 3]) ->
 }
 
 /// Starting values of an effect's parameters (physical units): a small grid over the most
-/// influential ones; each start is evaluated and the best refined.
+/// influential ones; each start is evaluated and the best refined. The reversible term's
+/// saturation field spans 0.8 to 6.4 times the operating field and its shape both sides of
+/// `tanh`'s (≈ 2): from one field and one shape, a tanh-like term of the bench plant was fitted
+/// with `H_s` five times too large and the shared constants at their limits (a quarter of the
+/// gap left; 2–4 % from the grid).
 pub fn effect_starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
     let f0 = nominal.resonance_hz;
     let mut out = Vec::new();
@@ -441,9 +445,14 @@ pub fn effect_starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
             }
         }
         EffectName::ReversibleMagnetization => {
-            let h_s = nominal.operating_field_a_per_m.max(4e3);
-            for chi in [1.0, 5.0, 15.0] {
-                out.push(vec![chi, h_s, 1.5]);
+            let h_op = nominal.operating_field_a_per_m.max(4e3);
+            for chi in [1.0, 4.0, 12.0] {
+                // Inside the range (its low end, half the operating field, is a physical limit).
+                for k in [0.8, 1.6, 3.2, 6.4] {
+                    for p in [1.5, 3.0] {
+                        out.push(vec![chi, k * h_op, p]);
+                    }
+                }
             }
         }
         EffectName::ThermalDrift => {
@@ -542,6 +551,29 @@ mod tests {
             assert_eq!(effect_parameters(e, &n).len(), effect_parameter_count(e));
             for s in effect_starts(e, &n) {
                 assert_eq!(s.len(), effect_parameter_count(e));
+            }
+        }
+    }
+
+    #[test]
+    fn no_start_sits_at_a_physical_limit() {
+        // A start at a limit is a fit that may stay pinned there, which disqualifies the
+        // candidate (the reversible term's grid once began at the saturation field's floor).
+        let mut n = Nominal::from_params(&actuator_params::paper_defaults());
+        n.slowest_period_s = 1.0 / 20.0;
+        for e in EffectName::LIBRARY {
+            let specs = effect_parameters(e, &n);
+            for start in effect_starts(e, &n) {
+                for (spec, &v) in specs.iter().zip(&start) {
+                    assert!(
+                        !spec.pinned(spec.coordinate(v)),
+                        "{}: start {} = {v} is at a physical limit [{}, {}]",
+                        e.name(),
+                        spec.name,
+                        spec.lo,
+                        spec.hi
+                    );
+                }
             }
         }
     }

@@ -38,8 +38,9 @@
 //!    * `none` when the refitted nominal model's held-out systematic gap is below the resolution
 //!      of the gap estimate ([`resolution_floor`] = max(0.35 σ, 0.05 % of the motion)), or not
 //!      above [`none_threshold`] = max(σ, 0.2 % of the motion) and no candidate explains it;
-//!    * a candidate is **significant** when its held-out systematic gap is at most half the
-//!      refitted nominal one (it removes ≥ 75 % of the gap's energy) and it makes at most a
+//!    * a candidate is **significant** when its held-out systematic gap is at most
+//!      [`EXPLAINED_RATIO`] = 0.3 of the refitted nominal one (it removes ≥ 91 % of the gap's
+//!      energy) and it makes at most a
 //!      quarter of the held-out experiments worse (RMS up by more than 5 % + 0.1 σ): the
 //!      verdict is the significant candidate with the lowest held-out error, else `unexplained`;
 //!    * candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`.
@@ -50,15 +51,16 @@
 //!    one frequency band best (up to two more: a slow and a fast effect each show in their own
 //!    bands) is refitted, and so is the best single candidate with every other effect of the
 //!    library (forward selection: an effect the first one masks fits badly alone). The best pair
-//!    is named (the second effect
-//!    as an `additional_effect`) when it passes the significance test against the first effect
-//!    alone, removes three quarters of the refitted nominal gap's energy, the second effect
-//!    accounts for at least [`SECOND_EFFECT_MIN_SHARE`] of that energy beyond the first, and
-//!    both its effects are needed: with either switched off and the rest refitted, the gap is at
-//!    least twice as large.
+//!    is named (the second effect as an `additional_effect`) when its held-out gap is at most
+//!    half the first effect's alone and half the refitted nominal one, it makes at most a
+//!    quarter of the held-out experiments worse, pins no parameter, and both its effects are
+//!    needed: with either switched off and the rest refitted, the gap is at least twice as large.
+//!    (No rule on the second effect's share of the *nominal* gap: when the first effect's fit
+//!    absorbs most of the second — thermal drift or a lag taking ΔE's amplitude dependence — the
+//!    share is small although the second effect removes 90 % of what the first leaves.)
 //!
 //! **Significance** (steps 7 and 8) is a knock-out test as well: the candidate's held-out gap
-//! must also be at most half of what its own fit gives with its effect switched off (so the
+//! must also be at most [`EXPLAINED_RATIO`] of what its own fit gives with its effect switched off (so the
 //! improvement is the effect's, not a better optimum of the shared constants), and no effect
 //! parameter may be pinned at a physical limit of its range ([`crate::candidates::Edge`]): an
 //! explanation that needs an implausible effect is none.
@@ -280,8 +282,8 @@ pub struct DiagnosisRun {
 /// The significance criterion in words (also in `diagnosis.json`).
 pub const CRITERION: &str = "every candidate refits R_eddy, xi, f0 and the channel skew on the \
 training experiments; one is named when, on held-out experiments (outside the training span in \
-frequency and amplitude), it removes at least 75 % of the refitted nominal model's systematic gap \
-energy (noise-corrected RMS gap after <= 0.5 x before) and makes at most a quarter of them worse; \
+frequency and amplitude), it removes at least 91 % of the refitted nominal model's systematic gap \
+energy (noise-corrected RMS gap after <= 0.3 x before) and makes at most a quarter of them worse; \
 `none` when the refitted nominal model's held-out systematic gap is below max(0.35 x noise, 0.05 % \
 of the motion), or below max(noise, 0.2 % of the motion) and no candidate explains it";
 
@@ -289,12 +291,14 @@ of the motion), or below max(noise, 0.2 % of the motion) and no candidate explai
 /// candidates join them).
 pub const PAIR_CANDIDATES: usize = 4;
 
-/// A second effect is named only when it accounts for at least this share of the refitted
-/// nominal gap's *energy* beyond what the first effect removes: the library's forms are simpler
-/// than a rig's (a two-mode load, a ladder of eddy paths), and a smaller improvement is
-/// indistinguishable from the first effect's form being too simple — naming a second effect for
-/// it would be a false pair.
-pub const SECOND_EFFECT_MIN_SHARE: f64 = 0.05;
+/// A candidate explains the gap when its held-out systematic gap is at most this fraction of the
+/// refitted nominal one (it removes ≥ 91 % of the gap's energy). With every candidate fitted
+/// from a grid of starts and in two phases ([`crate::fit`]), a library effect on the bench
+/// plant's suites (seeds 3 and 4) leaves at most 27 % of its gap in the library's simpler form
+/// (a two-mode load fitted with one mode), while a sensor gain nonlinearity (not in the library)
+/// is mimicked by a static candidate to 35–42 %: the bound lies between them. At 0.5 (the rule
+/// before) every sensor nonlinearity there was named as reversible magnetization or ΔE.
+pub const EXPLAINED_RATIO: f64 = 0.3;
 
 /// A single candidate that leaves at most this fraction of the refitted nominal gap (removes at
 /// least 36 % of its energy) is worth a second effect on top when it is not significant alone.
@@ -727,7 +731,7 @@ pub fn diagnose(
                 if let Some(library_start) = candidates::effect_starts(second, &nominal).first() {
                     starts.push(first_fit_with(library_start));
                 }
-                let f = fitter.fit_from(&cand, &starts, ranked[i].1.plan);
+                let f = fitter.fit_from(&cand, &starts, ranked[i].1.plan, false);
                 let sc = scorer.predict(&f);
                 Some((scorer.result(&f, &sc, &base_scored), f, sc))
             })
@@ -738,13 +742,8 @@ pub fn diagnose(
         });
         if let Some((r, f, sc)) = pairs.first() {
             let singles: Vec<&PlanFit> = ranked.iter().map(|r| &r.1).collect();
-            // The second effect's own share of the gap's energy: what the pair removes beyond
-            // the best single candidate, as a fraction of the refitted nominal gap's energy.
-            let second_share =
-                (base_gap * base_gap - r.systematic_after_m * r.systematic_after_m) / (gap0 * gap0);
             let accepted = r.pinned.is_empty()
                 && r.systematic_after_m <= 0.5 * base_gap.min(gap0)
-                && second_share >= SECOND_EFFECT_MIN_SHARE
                 && r.worse_experiments as f64 <= 0.25 * r.held_out_experiments as f64
                 && scorer.necessary(f, 0, &singles, r.systematic_after_m);
             if accepted {
@@ -1068,10 +1067,17 @@ impl PlanFitter<'_> {
     /// Fits from the nuisance stage's plan, then tries the other plans at the fitted values and
     /// refits with the best if it is better by more than 1 %.
     pub fn fit(&self, candidate: &Candidate, starts: &[Vec<f64>]) -> PlanFit {
-        self.fit_from(candidate, starts, self.first_plan)
+        self.fit_from(candidate, starts, self.first_plan, true)
     }
 
-    pub fn fit_from(&self, candidate: &Candidate, starts: &[Vec<f64>], plan: usize) -> PlanFit {
+    /// `two_phase`: see [`crate::fit::fit`].
+    pub fn fit_from(
+        &self,
+        candidate: &Candidate,
+        starts: &[Vec<f64>],
+        plan: usize,
+        two_phase: bool,
+    ) -> PlanFit {
         let first = fit(
             self.setup,
             &self.plan_data[plan],
@@ -1079,6 +1085,7 @@ impl PlanFitter<'_> {
             candidate,
             starts,
             self.settings,
+            two_phase,
         );
         if self.plan_data.len() <= 1 {
             return PlanFit {
@@ -1119,6 +1126,7 @@ impl PlanFitter<'_> {
                     candidate,
                     std::slice::from_ref(&first.values),
                     self.settings,
+                    false,
                 );
                 if again.training_rms_m < first.training_rms_m {
                     PlanFit {
@@ -1188,7 +1196,7 @@ impl Scorer<'_> {
             {
                 starts.push(single.fitted.values.clone());
             }
-            let refit = fitter.fit_from(&kept.candidate, &starts, pair.plan);
+            let refit = fitter.fit_from(&kept.candidate, &starts, pair.plan, false);
             let remaining =
                 systematic(self.rms(&self.predict(&refit), self.held_out), self.noise_m);
             remaining >= 2.0 * gap
@@ -1236,7 +1244,8 @@ impl Scorer<'_> {
         let passes = |knocked_out: f64| {
             effects > 0
                 && pinned.is_empty()
-                && sys_after <= 0.5 * sys_before.min(systematic(knocked_out, self.noise_m))
+                && sys_after
+                    <= EXPLAINED_RATIO * sys_before.min(systematic(knocked_out, self.noise_m))
                 && worse as f64 <= 0.25 * self.held_out.len() as f64
         };
         // Confirmation: the knocked-out model refitted from this fit's own values must not
@@ -1245,8 +1254,12 @@ impl Scorer<'_> {
         let (knocked_out, significant) = match self.fitter {
             Some(fitter) if passes(knocked_out) => {
                 let k = f.knocked_out(effects - 1);
-                let again =
-                    fitter.fit_from(&k.candidate, std::slice::from_ref(&k.values), plan_fit.plan);
+                let again = fitter.fit_from(
+                    &k.candidate,
+                    std::slice::from_ref(&k.values),
+                    plan_fit.plan,
+                    false,
+                );
                 let refitted = self.rms(&self.predict(&again), self.held_out);
                 let worst = knocked_out.min(refitted);
                 (worst, passes(worst))
