@@ -468,7 +468,6 @@ pub fn fit(
     } else {
         1
     };
-    let mut best = scored[0].clone();
     let mut results: Vec<(f64, DVector<f64>)> = Vec::new();
     let minimize = |p: Problem<'_>| {
         let (p, report) = LevenbergMarquardt::new()
@@ -496,11 +495,9 @@ pub fn fit(
     };
     let two_phase = two_phase && !candidate.effects.is_empty();
     for (_, z0) in scored.iter().take(refine) {
-        let mut runs = vec![{
-            let mut p = make(z0.clone());
-            p.set_params(z0);
-            minimize(p)
-        }];
+        let mut p = make(z0.clone());
+        p.set_params(z0);
+        results.push(minimize(p));
         if two_phase {
             // The effect's own parameters first, with the shared constants held at the start's
             // (the parameter file's or the refitted ones): freed at once, the constants move
@@ -516,21 +513,19 @@ pub fn fit(
             let (_, z1) = minimize(p);
             let mut p = make(z1.clone());
             p.set_params(&z1);
-            runs.push(minimize(p));
+            results.push(minimize(p));
         }
-        results.extend(runs);
     }
     // The lowest cost, unless it pins an effect parameter at a physical limit and a result that
     // pins none comes within 10 % of it: the pinned optimum would disqualify the candidate
     // (an implausible effect) for a gain in cost the data do not resolve.
     let pins = |z: &DVector<f64>| specs.iter().zip(z.iter()).any(|(s, &v)| s.pinned(v));
     results.sort_by(|a, b| a.0.total_cmp(&b.0));
-    if let Some(lowest) = results.first().cloned() {
-        best = match results.iter().find(|r| !pins(&r.1)) {
-            Some(free) if pins(&lowest.1) && free.0 <= 1.1 * lowest.0 => free.clone(),
-            _ => lowest,
-        };
-    }
+    let best = match (results.first(), results.iter().find(|r| !pins(&r.1))) {
+        (Some(lowest), Some(free)) if pins(&lowest.1) && free.0 <= 1.1 * lowest.0 => free.clone(),
+        (Some(lowest), _) => lowest.clone(),
+        (None, _) => scored[0].clone(),
+    };
     let n_res: usize = training
         .iter()
         .zip(&lengths)
