@@ -214,7 +214,7 @@ pub fn analyse(
     let mut ranges = Vec::new();
     for g in 0..groups {
         let members: Vec<usize> = (0..infos.len())
-            .filter(|&k| infos[k].frequency_group == g)
+            .filter(|&k| !infos[k].quasi_static && infos[k].frequency_group == g)
             .collect();
         if members.is_empty() {
             continue;
@@ -366,18 +366,23 @@ fn summarize(w: &Where, noise_m: f64) -> Vec<String> {
         ));
     }
     // DC level.
+    // Each experiment's DC error as a fraction of its own displacement range.
     let worst_dc = w
         .experiments
         .iter()
-        .map(|e| e.dc_error_m.abs() / (e.rms_m / e.relative_rms.max(1e-300)).max(1e-300))
-        .fold(0.0f64, f64::max);
-    if worst_dc < 0.01 {
-        out.push("The DC level agrees (within 1 % of the motion in every experiment).".into());
-    } else {
-        out.push(format!(
-            "The DC level is off by up to {:.1} % of the motion.",
-            100.0 * worst_dc
-        ));
+        .map(|e| {
+            let relative = e.dc_error_m.abs() / (e.rms_m / e.relative_rms.max(1e-300)).max(1e-300);
+            (relative, e)
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0));
+    match worst_dc {
+        Some((relative, e)) if relative >= 0.01 => out.push(format!(
+            "The DC level is off by up to {:.1} % of an experiment's own motion ({}: {:+.3e} m).",
+            100.0 * relative,
+            e.name,
+            e.dc_error_m
+        )),
+        _ => out.push("The DC level agrees (within 1 % of the motion in every experiment).".into()),
     }
     // Harmonics.
     let mut worst_h = (0.0f64, 0usize, 0.0f64);

@@ -46,6 +46,7 @@ pub mod lines;
 pub mod magnetization;
 pub mod memory;
 pub mod model;
+pub mod quality;
 pub mod spectrum;
 
 /// Number of input levels of the grid (the core's `LEVELS`).

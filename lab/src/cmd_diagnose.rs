@@ -80,10 +80,14 @@ pub fn run(args: &Args) -> Result<()> {
         .chain(d.additional_effects.iter().map(|s| s.as_str()))
         .collect();
     println!("verdict: {} — {}", named.join(" + "), d.verdict_reason);
+    for w in &d.parameter_file_warnings {
+        println!("WARNING (from the parameter file's identification): {w}");
+    }
     println!("estimated (nuisances, not effects):");
     for e in &d.nuisance.estimated {
         println!("  {e}");
     }
+    println!("  constants' refit range: {}", d.constants_range.reason);
     for s in &d.where_.summary {
         println!("  {s}");
     }
@@ -120,6 +124,17 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
         named.join(" + "),
         d.verdict_reason
     );
+    if !d.parameter_file_warnings.is_empty() {
+        let _ = writeln!(
+            s,
+            "**The parameter file's identification warned** (`provenance.warnings`): its model \
+             did not describe the data it was identified from.\n"
+        );
+        for w in &d.parameter_file_warnings {
+            let _ = writeln!(s, "- {w}");
+        }
+        let _ = writeln!(s);
+    }
     let _ = writeln!(s, "## Estimated, not effects\n");
     for e in &d.nuisance.estimated {
         let _ = writeln!(s, "- {e}");
@@ -127,13 +142,18 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
     let r = &d.refitted_nominal;
     let _ = writeln!(
         s,
-        "- the nominal constants refitted on the training experiments: {} (held-out RMS {} µm)\n",
+        "- the nominal constants refitted on the training experiments: {} (held-out RMS {} µm)",
         r.parameters
             .iter()
             .map(|(k, v)| format!("{k} = {v:.4}"))
             .collect::<Vec<_>>()
             .join(", "),
         um(r.held_out_rms_after_m)
+    );
+    let _ = writeln!(
+        s,
+        "- how far the refit could move them: {}\n",
+        d.constants_range.reason
     );
     if !d.ambiguous_with.is_empty() {
         let _ = writeln!(

@@ -12,6 +12,9 @@
 //! (`maglab_diagnose::identification`), so an identified file is what `maglab diagnose`'s refit
 //! gives on the same data. Both are reported side by side.
 //! Without dynamic files R_eddy, ξ, f0 are copied from the base file and the provenance says so.
+//! Before writing, the result is checked against the data it came from
+//! (`maglab_identify::quality`): each failed check is printed as a `WARNING` and listed in
+//! `provenance.warnings`.
 //! Plots: the identified masses on the Preisach plane, measured vs predicted M-H loops, the
 //! Figure 5 chart (ξ against frequency per candidate R_eddy) and measured vs predicted
 //! displacement loops per frequency.
@@ -31,7 +34,8 @@ use maglab_identify::experiments::{load_split_dataset, ClassifyOptions, SplitDat
 use maglab_identify::fit::{FitOptions, Unexcited};
 use maglab_identify::magnetization::Branch;
 use maglab_identify::memory::InitialState;
-use std::path::PathBuf;
+use maglab_identify::quality::{self, DynamicResidual};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `maglab identify`.
 #[derive(Debug, Parser)]
@@ -287,6 +291,41 @@ pub fn run(args: &Args) -> Result<()> {
             .context("the identified parameters do not validate")?;
         Some(fit)
     };
+    // Does the identified model describe the data it came from? (`maglab_identify::quality`.)
+    let residuals: Vec<DynamicResidual> = dynamic
+        .iter()
+        .flat_map(|fit| &fit.experiments)
+        .filter_map(|e| {
+            e.nrmse_refined.map(|nrmse| DynamicResidual {
+                file: Path::new(&e.file)
+                    .file_name()
+                    .map_or_else(|| e.file.clone(), |n| n.to_string_lossy().into_owned()),
+                frequency_hz: e.frequency_hz,
+                nrmse,
+            })
+        })
+        .collect();
+    let fitted_up_to_hz = dynamic
+        .as_ref()
+        .and_then(|fit| fit.refined.as_ref())
+        .and_then(|r| r.details.get("fitted_up_to_hz"))
+        .and_then(serde_json::Value::as_f64);
+    let warnings = quality::warnings(
+        &id.files,
+        id.fit.weights.iter().sum(),
+        id.params.actuator.saturation_magnetization_a_per_m,
+        &residuals,
+        fitted_up_to_hz,
+    );
+    for w in &warnings {
+        println!("WARNING: {w}");
+    }
+    if !warnings.is_empty() {
+        id.params
+            .provenance
+            .details
+            .insert("warnings".into(), serde_json::json!(warnings));
+    }
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;
     }

@@ -6,7 +6,8 @@
 //! of which `identify` and `diagnose` must estimate.
 //!
 //! Acceptance: R_eddy, ξ, f0 within 3 % of the plant's, Σ masses within 2 % of M_s, verdict
-//! `none`.
+//! `none` (with the constants refitted in the wide range of identified constants), and the
+//! report's "where" has one frequency band per sine frequency, none for the reversal sweep.
 use std::path::Path;
 use std::process::Command;
 
@@ -65,6 +66,12 @@ fn identify_then_diagnose_recovers_the_plant_and_finds_no_effect() {
 
     let truth = actuator_params::paper_defaults();
     let id = json(&identified);
+    // The identified model describes these data: no quality warning (maglab_identify::quality).
+    assert!(
+        id["provenance"].get("warnings").is_none() && !log.contains("WARNING"),
+        "{}",
+        id["provenance"]["warnings"]
+    );
     let a = &id["actuator"];
     let rel = |key: &str, true_value: f64| {
         let v = a[key].as_f64().expect(key);
@@ -104,4 +111,39 @@ fn identify_then_diagnose_recovers_the_plant_and_finds_no_effect() {
     println!("{log}\ndiagnose: {:.1} s", started.elapsed().as_secs_f64());
     let d = json(&report.join("diagnosis.json"));
     assert_eq!(d["verdict"], "none", "{}", d["verdict_reason"]);
+    assert_eq!(d["parameter_file_warnings"], serde_json::json!([]));
+    // The identified constants are refitted within the wide range (they came from these data).
+    assert_eq!(
+        d["constants_range"]["identified_from_data"]
+            .as_array()
+            .map(Vec::len),
+        Some(3),
+        "{}",
+        d["constants_range"]
+    );
+    // "Where" reports one band per frequency of the dynamic experiments, in ascending order,
+    // and none for the quasi-static reversal sweep.
+    let mut sine_hz: Vec<f64> = d["experiments"]
+        .as_array()
+        .expect("experiments")
+        .iter()
+        .filter(|e| e["quasi_static"] == false)
+        .map(|e| e["fundamental_hz"].as_f64().expect("fundamental"))
+        .collect();
+    sine_hz.sort_by(f64::total_cmp);
+    sine_hz.dedup_by(|b, a| *b <= *a * 1.05);
+    let bands: Vec<f64> = d["where"]["bands"]
+        .as_array()
+        .expect("bands")
+        .iter()
+        .map(|b| b["frequency_hz"].as_f64().expect("band frequency"))
+        .collect();
+    println!("dynamic frequencies {sine_hz:.1?}, where bands {bands:.1?}");
+    assert_eq!(bands.len(), sine_hz.len());
+    for (b, f) in bands.iter().zip(&sine_hz) {
+        assert!(
+            (b / f - 1.0).abs() < 0.05,
+            "band {b} Hz vs experiment {f} Hz"
+        );
+    }
 }
