@@ -1522,3 +1522,38 @@ fn split(infos: &mut [ExperimentInfo], dynamic: &[usize]) -> Result<(), String> 
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn identified_constants_get_the_wide_refit_range_and_given_ones_do_not() {
+        let mut params = actuator_params::paper_defaults();
+        let given = constants_range(&params, candidates::REFIT_RANGE);
+        assert_eq!(given.factors, candidates::REFIT_RANGE);
+        assert!(given.identified_from_data.is_empty());
+        // As `maglab identify` writes it when only the phase-lag scheme ran (f0 not identified).
+        params.provenance.details.insert(
+            "identified".into(),
+            serde_json::json!([
+                "preisach.weights_a_per_m",
+                "actuator.eddy_resistance_ohm",
+                "actuator.damping_ratio"
+            ]),
+        );
+        let identified = constants_range(&params, candidates::REFIT_RANGE);
+        assert_eq!(
+            identified.factors,
+            [
+                IDENTIFIED_REFIT_RANGE[0],
+                IDENTIFIED_REFIT_RANGE[1],
+                candidates::REFIT_RANGE[2]
+            ]
+        );
+        assert_eq!(identified.identified_from_data.len(), 2);
+        assert!(identified
+            .reason
+            .contains("actuator.damping_ratio identified from data"));
+    }
+}
