@@ -9,7 +9,7 @@
 //! budget; 32 is the whole suite) choose the run; it asserts ≥ 90 % correct.
 //!
 //! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on all 32 cases of seed 1
-//! (`IDENTIFIED_CASES=32`): 18/32 correct. Every noise-only case (4/4, `none`) and every
+//! (`IDENTIFIED_CASES=32`): 18/32 correct (seed 2: 17/32). Every noise-only case (4/4, `none`) and every
 //! out-of-library case (8/8, `unexplained`) is right; 6 of the 20 library-effect cases are. The
 //! identification absorbs the effect into R_eddy, ξ, f0 (f0 196–264 Hz for the 392 Hz rod with a
 //! lag in the data), the reversible part into the identified masses, and with creep, stick-slip
