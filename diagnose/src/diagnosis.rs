@@ -75,6 +75,7 @@ use crate::model::{run_mech, Electro, Interpolation, Mech, ModelStart, Nominal};
 use crate::signal;
 use maglab_identify::data::Measurement;
 use maglab_identify::dataset_info::{DatasetInfo, StartState};
+use maglab_identify::dynamics::record::DYNAMIC_FIELDS;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -94,13 +95,6 @@ pub const QUASI_STATIC_BELOW_HZ: f64 = 5.0;
 /// ×/÷ 2 the diagnosis named 18 of 32 cases right instead of 16 (none of the 16 lost).
 pub const IDENTIFIED_REFIT_RANGE: [f64; 3] = [2.0, 2.0, 2.0];
 
-/// The parameter-file fields of the refitted constants, in the order of the refit range.
-const CONSTANT_FIELDS: [&str; 3] = [
-    "actuator.eddy_resistance_ohm",
-    "actuator.damping_ratio",
-    "actuator.resonance_hz",
-];
-
 /// How far the refit may move each of `R_eddy`, `ξ`, `f0`, and why (in `diagnosis.json`).
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ConstantsRange {
@@ -119,19 +113,13 @@ pub struct ConstantsRange {
 pub fn constants_range(params: &actuator_params::ActuatorParams, base: [f64; 3]) -> ConstantsRange {
     let listed: Vec<String> = params
         .provenance
-        .details
-        .get("identified")
-        .and_then(serde_json::Value::as_array)
-        .map(|a| {
-            a.iter()
-                .filter_map(|v| v.as_str())
-                .filter(|f| CONSTANT_FIELDS.contains(f))
-                .map(String::from)
-                .collect()
-        })
-        .unwrap_or_default();
+        .identified_fields()
+        .into_iter()
+        .filter(|f| DYNAMIC_FIELDS.contains(f))
+        .map(String::from)
+        .collect();
     let mut factors = base;
-    for (i, field) in CONSTANT_FIELDS.iter().enumerate() {
+    for (i, field) in DYNAMIC_FIELDS.iter().enumerate() {
         if listed.iter().any(|f| f == field) {
             factors[i] = factors[i].max(IDENTIFIED_REFIT_RANGE[i]);
         }
@@ -973,15 +961,10 @@ pub fn diagnose(
             constants_range,
             parameter_file_warnings: params
                 .provenance
-                .details
-                .get("warnings")
-                .and_then(serde_json::Value::as_array)
-                .map(|a| {
-                    a.iter()
-                        .map(|w| w.as_str().map_or_else(|| w.to_string(), String::from))
-                        .collect()
-                })
-                .unwrap_or_default(),
+                .warnings()
+                .into_iter()
+                .map(String::from)
+                .collect(),
             refitted_nominal: refit_result,
             nuisance,
             experiments: infos,
@@ -1535,7 +1518,7 @@ mod tests {
         assert!(given.identified_from_data.is_empty());
         // As `maglab identify` writes it when only the phase-lag scheme ran (f0 not identified).
         params.provenance.details.insert(
-            "identified".into(),
+            actuator_params::Provenance::IDENTIFIED.into(),
             serde_json::json!([
                 "preisach.weights_a_per_m",
                 "actuator.eddy_resistance_ohm",

@@ -210,12 +210,12 @@ impl Fitted {
             .map(|s| s.name.to_string())
             .collect();
         let several = self.candidate.effects.len() > 1;
-        let shared = names.clone();
+        let shared = &self.specs[..COMMON_PARAMETER_COUNT.min(self.specs.len())];
         let mut k = COMMON_PARAMETER_COUNT;
         for &e in &self.candidate.effects {
             let n = candidates::effect_parameter_count(e);
             for s in self.specs.iter().skip(k).take(n) {
-                names.push(if several || shared.iter().any(|c| c == s.name) {
+                names.push(if several || shared.iter().any(|c| c.name == s.name) {
                     format!("{}.{}", e.name(), s.name)
                 } else {
                     s.name.to_string()

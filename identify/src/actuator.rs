@@ -487,11 +487,14 @@ fn provenance(
         json!(humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()),
     );
     d.insert("base_parameters".into(), json!(base_name));
-    d.insert("identified".into(), json!(["preisach.weights_a_per_m"]));
+    d.insert(
+        actuator_params::Provenance::IDENTIFIED.into(),
+        json!(["preisach.weights_a_per_m"]),
+    );
     d.insert(
         "not_identified".into(),
         json!({
-            "fields": ["actuator.eddy_resistance_ohm", "actuator.damping_ratio", "actuator.resonance_hz"],
+            "fields": crate::dynamics::record::DYNAMIC_FIELDS,
             "values": {
                 "eddy_resistance_ohm": base.actuator.eddy_resistance_ohm,
                 "damping_ratio": base.actuator.damping_ratio,

@@ -321,10 +321,10 @@ pub fn run(args: &Args) -> Result<()> {
         println!("WARNING: {w}");
     }
     if !warnings.is_empty() {
-        id.params
-            .provenance
-            .details
-            .insert("warnings".into(), serde_json::json!(warnings));
+        id.params.provenance.details.insert(
+            actuator_params::Provenance::WARNINGS.into(),
+            serde_json::json!(warnings),
+        );
     }
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;

@@ -238,6 +238,31 @@ pub struct Provenance {
     pub details: serde_json::Map<String, serde_json::Value>,
 }
 
+impl Provenance {
+    /// Key of the list of fields identified from data (`maglab identify` writes it).
+    pub const IDENTIFIED: &'static str = "identified";
+    /// Key of the identification's quality warnings (`maglab identify` writes it).
+    pub const WARNINGS: &'static str = "warnings";
+
+    /// The fields listed under [`Self::IDENTIFIED`] (empty when there is none).
+    pub fn identified_fields(&self) -> Vec<&str> {
+        self.string_list(Self::IDENTIFIED)
+    }
+
+    /// The warnings listed under [`Self::WARNINGS`] (empty when there is none).
+    pub fn warnings(&self) -> Vec<&str> {
+        self.string_list(Self::WARNINGS)
+    }
+
+    fn string_list(&self, key: &str) -> Vec<&str> {
+        self.details
+            .get(key)
+            .and_then(serde_json::Value::as_array)
+            .map(|a| a.iter().filter_map(serde_json::Value::as_str).collect())
+            .unwrap_or_default()
+    }
+}
+
 /// An invalid parameter file: which field, and why.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamsError {

@@ -4,8 +4,15 @@
 
 use super::DynamicFit;
 use crate::experiments::{Rule, SplitDataset};
-use actuator_params::ActuatorParams;
-use serde_json::{json, Value};
+use actuator_params::{ActuatorParams, Provenance};
+use serde_json::json;
+
+/// The parameter-file fields of `R_eddy`, `ξ`, `f0`, in that order.
+pub const DYNAMIC_FIELDS: [&str; 3] = [
+    "actuator.eddy_resistance_ohm",
+    "actuator.damping_ratio",
+    "actuator.resonance_hz",
+];
 
 /// Sets `R_eddy`, `ξ`, `f0` of `params` from `fit` and records how in `params.provenance`
 /// (`dynamics`, `dataset_classification`; the three fields move from `not_identified` to
@@ -15,28 +22,24 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
     params.actuator.eddy_resistance_ohm = best.eddy_resistance_ohm;
     params.actuator.damping_ratio = best.damping_ratio;
     params.actuator.resonance_hz = best.resonance_hz;
-    let d = &mut params.provenance.details;
-    let mut identified: Vec<Value> = d
-        .get("identified")
-        .and_then(Value::as_array)
-        .cloned()
-        .unwrap_or_default();
-    let fields = [
-        "actuator.eddy_resistance_ohm",
-        "actuator.damping_ratio",
-        "actuator.resonance_hz",
-    ];
+    let mut identified: Vec<String> = params
+        .provenance
+        .identified_fields()
+        .into_iter()
+        .map(String::from)
+        .collect();
     let written: &[&str] = if fit.refined.is_some() {
-        &fields
+        &DYNAMIC_FIELDS
     } else {
-        &fields[..2]
+        &DYNAMIC_FIELDS[..2]
     };
     for f in written {
         if !identified.iter().any(|v| v == f) {
-            identified.push(json!(f));
+            identified.push(f.to_string());
         }
     }
-    d.insert("identified".into(), json!(identified));
+    let d = &mut params.provenance.details;
+    d.insert(Provenance::IDENTIFIED.into(), json!(identified));
     if fit.refined.is_some() {
         d.remove("not_identified");
     } else {
