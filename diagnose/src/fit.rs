@@ -84,9 +84,10 @@ impl ModelSetup<'_> {
     }
 
     /// Stage A of the experiments `which` of `data` (their first `lens[i]` samples). When an
-    /// experiment starts where the previous one ended, the chain is simulated in order with the
-    /// same parameters, each experiment whole (its end is the next one's start); otherwise the
-    /// experiments run in parallel.
+    /// experiment starts where the previous one ended, its chain (back to the first record that
+    /// does not continue another: a reset, or a start a lead-in record left,
+    /// [`ModelStart::After`]) is simulated in order with the same parameters, each experiment
+    /// whole (its end is the next one's start); otherwise the experiments run in parallel.
     pub fn electro_runs(
         &self,
         e: &Electro,
@@ -102,13 +103,22 @@ impl ModelSetup<'_> {
                 .map(|(&k, &len)| self.electro(e, &data[k], len, None))
                 .collect();
         }
-        let last = which.iter().copied().max().unwrap_or(0);
-        let mut runs: Vec<Option<ElectroRun>> = Vec::with_capacity(last + 1);
+        // Every record a wanted one continues, back to its chain's first.
+        let mut needed = vec![false; data.len()];
+        for &k in which {
+            let mut j = k;
+            needed[j] = true;
+            while j > 0 && data[j].start == ModelStart::Previous {
+                j -= 1;
+                needed[j] = true;
+            }
+        }
+        let mut runs: Vec<Option<ElectroRun>> = (0..data.len()).map(|_| None).collect();
         let mut previous: Option<crate::model::Memory> = None;
-        for x in data.iter().take(last + 1) {
+        for (k, x) in data.iter().enumerate().filter(|(k, _)| needed[*k]) {
             let run = self.electro(e, x, x.current_a.len(), previous.as_ref());
             previous = Some((*run.end_memory).clone());
-            runs.push(Some(run));
+            runs[k] = Some(run);
         }
         which
             .iter()

@@ -12,8 +12,8 @@
 
 use crate::candidates::Candidate;
 use crate::diagnosis::{
-    describe, estimate_nuisances, experiment_data, nominal_for_data, offset_of, pooled_rms,
-    systematic, NuisanceEstimate, PlanFitter, QUASI_STATIC_BELOW_HZ,
+    describe, estimate_nuisances, experiment_data, lead_in_memory, nominal_for_data, offset_of,
+    pooled_rms, systematic, NuisanceEstimate, PlanFitter, QUASI_STATIC_BELOW_HZ,
 };
 use crate::fit::{FitSettings, ModelSetup};
 use crate::model::{Electro, Interpolation, Mech};
@@ -101,10 +101,16 @@ impl Default for IdentificationOptions {
 /// example the phase-lag scheme's result) besides `params`' own values, which also centre the
 /// search range ([`IDENTIFICATION_RANGE`]) and the nuisance estimate: the best start by cost is
 /// refined (a start in the wrong basin cannot drag the fit there alone). `documented` is the
-/// dataset's `dataset.json` when it has one.
+/// dataset's `dataset.json` when it has one. `measurements` are in recording order (file-name
+/// order: an experiment that starts where the previous one ended continues the one before it),
+/// and `lead_in` is the record the first of them was recorded right after, if any (a
+/// quasi-static reversal sweep, not fitted here): when the experiments continue one another
+/// without a reset, the first starts from the memory `lead_in` left, simulated once from its
+/// documented start (demagnetized when undocumented; a reversal sweep wipes out its start).
 pub fn identify_dynamics(
     params: &actuator_params::ActuatorParams,
     measurements: &[Measurement],
+    lead_in: Option<&Measurement>,
     documented: Option<&DatasetInfo>,
     starts: &[[f64; 3]],
     options: &IdentificationOptions,
@@ -198,6 +204,15 @@ pub fn identify_dynamics(
     };
     let electro = Electro::nominal(base[0]);
     let mech = Mech::nominal(base[1], base[2]);
+    // The first experiment, when it continues the record before it, starts from its memory.
+    let lead_ins: Vec<_> = (0..measurements.len())
+        .map(|k| {
+            lead_in.filter(|_| k == 0).map(|record| {
+                let start = documented.and_then(|d| d.start_of(&file_name(record)));
+                lead_in_memory(&linear, &electro, record, start)
+            })
+        })
+        .collect();
     let NuisanceEstimate {
         start_sets,
         plan,
@@ -211,6 +226,7 @@ pub fn identify_dynamics(
         &fitted_set,
         &probe_lens,
         &documented_starts,
+        &lead_ins,
         &electro,
         &mech,
     );

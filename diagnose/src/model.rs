@@ -135,6 +135,10 @@ pub enum ModelStart {
     /// Where the previous experiment of the same simulated chain ended (no reset between
     /// experiments): its memory, then the first command applied at `t = 0`.
     Previous,
+    /// Where a record outside the simulated set left the memory (computed once, before any fit:
+    /// a quasi-static reversal sweep recorded right before the first experiment of a chain),
+    /// then the first command applied at `t = 0`.
+    After(std::sync::Arc<Memory>),
 }
 
 /// Parameters of the electromagnetic stage.
@@ -232,6 +236,7 @@ fn start_memory(
         (ModelStart::NegativeSaturation, _) => measure.negative_saturation(),
         (ModelStart::PositiveSaturation, _) => measure.positive_saturation(),
         (ModelStart::Previous, Some(m)) => m.clone(),
+        (ModelStart::After(m), _) => (**m).clone(),
         _ => measure.demagnetized(),
     }
 }

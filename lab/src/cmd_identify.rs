@@ -521,6 +521,20 @@ fn identify_dynamics(
     Ok(fit)
 }
 
+/// The quasi-static record recorded right before the first dynamic one (in the same folder, the
+/// last whose file name sorts before it), if any: the memory it leaves is where a chain of
+/// dynamic experiments recorded without a reset starts.
+fn lead_in<'a>(
+    quasi_static: &'a [maglab_identify::data::Measurement],
+    dynamic_in_order: &[maglab_identify::data::Measurement],
+) -> Option<&'a maglab_identify::data::Measurement> {
+    let first = dynamic_in_order.first()?;
+    quasi_static
+        .iter()
+        .filter(|q| q.path.parent() == first.path.parent() && q.path < first.path)
+        .max_by(|a, b| a.path.cmp(&b.path))
+}
+
 /// The final fit: `R_eddy`, `ξ`, `f0` with the recording's nuisances estimated, started from the
 /// phase-lag result (`maglab_diagnose::identification`).
 fn refine(
@@ -530,15 +544,20 @@ fn refine(
     documented: Option<&maglab_identify::dataset_info::DatasetInfo>,
 ) -> Result<()> {
     use maglab_diagnose::identification::{identify_dynamics, IdentificationOptions};
-    let measurements: Vec<_> = split
+    // Recording order (file-name order): an experiment recorded without a reset continues the
+    // one before it. The split sorts the dynamic experiments by frequency.
+    let mut measurements: Vec<_> = split
         .dynamic
         .iter()
         .map(|d| d.measurement.clone())
         .collect();
+    measurements.sort_by(|a, b| a.path.cmp(&b.path));
+    let lead_in = lead_in(&split.quasi_static, &measurements);
     let pl = fit.phase_lag_params;
     let id = identify_dynamics(
         params,
         &measurements,
+        lead_in,
         documented,
         &[[pl.eddy_resistance_ohm, pl.damping_ratio, pl.resonance_hz]],
         &IdentificationOptions::default(),
