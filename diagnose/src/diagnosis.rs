@@ -547,10 +547,15 @@ pub fn diagnose(
         ));
     }
     // A dynamic experiment recorded right after a quasi-static one (a reversal sweep) starts,
-    // when it continues it, from the memory the sweep left: simulated once here.
+    // when it continues it, from the memory the sweep left: simulated once here, and only when
+    // some experiment may continue another (a start `previous` documented or left to estimate).
+    let may_continue = documented_starts
+        .iter()
+        .any(|s| s.is_none_or(|s| s == StartState::Previous));
     let lead_ins: Vec<Option<Arc<Memory>>> = (0..measurements.len())
         .map(|k| {
-            (k > 0 && infos[k - 1].quasi_static && !infos[k].quasi_static).then(|| {
+            let continues_a_sweep = k > 0 && infos[k - 1].quasi_static && !infos[k].quasi_static;
+            (may_continue && continues_a_sweep).then(|| {
                 lead_in_memory(
                     &setup_for(Interpolation::Linear),
                     &file_electro,

@@ -205,14 +205,11 @@ pub fn identify_dynamics(
     let electro = Electro::nominal(base[0]);
     let mech = Mech::nominal(base[1], base[2]);
     // The first experiment, when it continues the record before it, starts from its memory.
-    let lead_ins: Vec<_> = (0..measurements.len())
-        .map(|k| {
-            lead_in.filter(|_| k == 0).map(|record| {
-                let start = documented.and_then(|d| d.start_of(&file_name(record)));
-                lead_in_memory(&linear, &electro, record, start)
-            })
-        })
-        .collect();
+    let mut lead_ins = vec![None; measurements.len()];
+    lead_ins[0] = lead_in.map(|record| {
+        let start = documented.and_then(|d| d.start_of(&file_name(record)));
+        lead_in_memory(&linear, &electro, record, start)
+    });
     let NuisanceEstimate {
         start_sets,
         plan,
