@@ -749,10 +749,7 @@ pub fn diagnose(
             (scorer.result(&f, &s, &base), f, s)
         })
         .collect();
-    ranked.sort_by(|a, b| {
-        a.0.held_out_rms_after_m
-            .total_cmp(&b.0.held_out_rms_after_m)
-    });
+    sort_by_held_out(&mut ranked);
     progress(1);
     let gap0 = refit_result.systematic_before_m;
     let threshold = none_threshold(noise_m, range);
@@ -859,20 +856,17 @@ pub fn diagnose(
                 Some((scorer.result(&f, &sc, &base_scored), f, sc))
             })
             .collect();
-        pairs.sort_by(|a, b| {
-            a.0.held_out_rms_after_m
-                .total_cmp(&b.0.held_out_rms_after_m)
-        });
+        sort_by_held_out(&mut pairs);
         if let Some((r, f, sc)) = pairs.first() {
             let singles: Vec<&PlanFit> = ranked.iter().map(|r| &r.1).collect();
-            let accepted = r.pinned.is_empty()
+            let plausible = r.pinned.is_empty()
                 && r.systematic_after_m <= 0.5 * base_gap.min(gap0)
-                && r.worse_experiments as f64 <= 0.25 * r.held_out_experiments as f64
-                && {
-                    let (needed, reduced) = scorer.necessary(f, &singles, r.systematic_after_m);
-                    single_refits = reduced;
-                    needed
-                };
+                && r.worse_experiments as f64 <= 0.25 * r.held_out_experiments as f64;
+            let accepted = plausible && {
+                let (needed, reduced) = scorer.necessary(f, &singles, r.systematic_after_m);
+                single_refits = reduced;
+                needed
+            };
             if accepted {
                 let mut names: Vec<&str> = r.effect.split('+').collect();
                 // The verdict is the effect that matters more: its single fit is the better one.
@@ -909,10 +903,7 @@ pub fn diagnose(
             }
         }
         if replaced {
-            ranked.sort_by(|a, b| {
-                a.0.held_out_rms_after_m
-                    .total_cmp(&b.0.held_out_rms_after_m)
-            });
+            sort_by_held_out(&mut ranked);
             winner = ranked.iter().position(|r| r.0.significant);
         }
     }
@@ -1336,6 +1327,14 @@ impl PlanFitter<'_> {
             },
         }
     }
+}
+
+/// Orders fitted candidates by their held-out RMS error, best first.
+fn sort_by_held_out(fits: &mut [(CandidateResult, PlanFit, Scored)]) {
+    fits.sort_by(|a, b| {
+        a.0.held_out_rms_after_m
+            .total_cmp(&b.0.held_out_rms_after_m)
+    });
 }
 
 struct Scorer<'a> {
