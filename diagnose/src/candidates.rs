@@ -14,7 +14,7 @@
 //! | candidate | parameters | form (see [`crate::model`]) |
 //! |---|---|---|
 //! | `nominal` | — | eqs (4)-(5) |
-//! | `eddy_frequency_dependence` | `hf_to_dc_ratio`, `corner_hz`, `anchor` | `R_eddy` going from `R_dc` below the corner to `R_hf = ratio · R_dc` above it (one extra eddy path), the refitted `R` between them: `ln R = ln R_dc + anchor · ln ratio` (a level change is the refit's, not a frequency dependence) |
+//! | `eddy_frequency_dependence` | `hf_to_dc_ratio`, `corner_hz`, `anchor` | `R_eddy` going from `R_dc` below the corner to `R_hf = ratio · R_dc` above it (one extra eddy path), the refitted `R` between them: `ln R = ln R_dc + anchor · ln ratio` (a level change is the refit's, not a frequency dependence); its richer form ([`RICHER_FORM`], in a pair of the second stage only) adds a second path, `hf_to_dc_ratio` and `corner_hz` of its own, and the anchor spans the whole step |
 //! | `amplifier_bandwidth` | `natural_hz`, `damping_ratio` | second-order low-pass on the current |
 //! | `sensor_dynamics` | `natural_hz`, `damping_ratio`, `delay_s` | second-order low-pass and a delay on the reading |
 //! | `reversible_magnetization` | `susceptibility`, `saturation_field_a_per_m`, `shape` | `χ_r H / (1 + |H/H_s|^p)^(1/p)` |
@@ -129,17 +129,70 @@ impl Candidate {
         }
     }
 
-    /// Its name (`nominal` or the effect names joined by `+`).
+    /// Its name (`nominal` or the effect names joined by `+`; an effect listed twice, in its
+    /// richer form, as [`richer_form_name`]).
     pub fn name(&self) -> String {
         if self.effects.is_empty() {
-            "nominal".into()
-        } else {
-            self.effects
-                .iter()
-                .map(|e| e.name())
-                .collect::<Vec<_>>()
-                .join("+")
+            return "nominal".into();
         }
+        self.distinct_effects()
+            .into_iter()
+            .map(|e| {
+                if self.effects.iter().filter(|&&x| x == e).count() > 1 {
+                    richer_form_name(e)
+                } else {
+                    e.name().to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("+")
+    }
+
+    /// The effects, each once, in the order first listed.
+    pub fn distinct_effects(&self) -> Vec<EffectName> {
+        let mut out: Vec<EffectName> = Vec::new();
+        for &e in &self.effects {
+            if !out.contains(&e) {
+                out.push(e);
+            }
+        }
+        out
+    }
+
+    /// The same candidate with `effect`'s richer form (the effect listed once more, at the end).
+    pub fn with_richer(&self, effect: EffectName) -> Candidate {
+        let mut effects = self.effects.clone();
+        effects.push(effect);
+        Candidate { effects }
+    }
+
+    /// The same candidate without `effect` (every listing of it).
+    pub fn without(&self, effect: EffectName) -> Candidate {
+        Candidate {
+            effects: self
+                .effects
+                .iter()
+                .copied()
+                .filter(|&e| e != effect)
+                .collect(),
+        }
+    }
+}
+
+/// Effects whose library form is the first term of a series that an actuator may show more of,
+/// and which a candidate may therefore list twice (still one effect, in a richer form): a
+/// second extra eddy path (the eddy currents of a rod diffuse from the surface inwards, so the
+/// effective resistance rises over a wide band rather than at one corner; one path follows
+/// that over about a decade). Tried in the second stage of the diagnosis
+/// ([`crate::diagnosis`]), so that a second effect is not missed because the first one's
+/// library form was too narrow.
+pub const RICHER_FORM: [EffectName; 1] = [EffectName::EddyFrequencyDependence];
+
+/// The report name of an effect's richer form.
+pub fn richer_form_name(effect: EffectName) -> String {
+    match effect {
+        EffectName::EddyFrequencyDependence => format!("{}(2 paths)", effect.name()),
+        _ => effect.name().to_string(),
     }
 }
 
@@ -409,10 +462,62 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
 /// Every parameter of a candidate: the common ones (within `range`), then each effect's.
 pub fn parameters(candidate: &Candidate, nominal: &Nominal, range: &[f64; 3]) -> Vec<ParamSpec> {
     let mut specs = common_parameters(nominal, range);
-    for &e in &candidate.effects {
-        specs.extend(effect_parameters(e, nominal));
+    for (i, &e) in candidate.effects.iter().enumerate() {
+        if is_repeat(&candidate.effects, i) {
+            specs.extend(second_term_parameters(e, nominal));
+        } else {
+            specs.extend(effect_parameters(e, nominal));
+        }
     }
     specs
+}
+
+/// Whether `effects[i]` is listed before: the second term of its richer form.
+pub fn is_repeat(effects: &[EffectName], i: usize) -> bool {
+    effects[..i].contains(&effects[i])
+}
+
+/// Number of parameters of `effects[i]`: the effect's own, or its second term's when it is a
+/// repeat ([`RICHER_FORM`]).
+pub fn parameter_count_at(effects: &[EffectName], i: usize) -> usize {
+    if is_repeat(effects, i) {
+        second_term_parameter_count(effects[i])
+    } else {
+        effect_parameter_count(effects[i])
+    }
+}
+
+/// The second term of an effect's richer form ([`RICHER_FORM`]; none for the others): a second
+/// eddy path (its own step of `R` and corner; the first path's `anchor` places the refitted
+/// `R` within the whole step).
+pub fn second_term_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
+    match effect {
+        EffectName::EddyFrequencyDependence => effect_parameters(effect, nominal)
+            .into_iter()
+            .take(2)
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// Number of parameters of an effect's second term.
+pub fn second_term_parameter_count(effect: EffectName) -> usize {
+    match effect {
+        EffectName::EddyFrequencyDependence => 2,
+        _ => 0,
+    }
+}
+
+/// Starts for an effect's second term, given the first term's fitted values: the second eddy
+/// path a decade below and above the first one's corner, stepping `R` up by 2.
+pub fn second_term_starts(effect: EffectName, first: &[f64]) -> Vec<Vec<f64>> {
+    match (effect, first) {
+        (EffectName::EddyFrequencyDependence, [_, corner, ..]) => [0.1, 10.0]
+            .iter()
+            .map(|k| vec![2.0, (corner * k).clamp(12.0, 4000.0)])
+            .collect(),
+        _ => Vec::new(),
+    }
 }
 
 /// Starting values of an effect's parameters (physical units): a small grid over the most
@@ -485,13 +590,21 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
     let mut m = Mech::nominal(values[1], values[2]);
     m.skew_samples = values[3];
     let mut k = COMMON_PARAMETER_COUNT;
-    for &effect in &candidate.effects {
+    let mut eddy_anchor = None;
+    for (i, &effect) in candidate.effects.iter().enumerate() {
         let v = &values[k..];
+        if is_repeat(&candidate.effects, i) {
+            // Only the eddy effect has a second term ([`RICHER_FORM`]).
+            if effect == EffectName::EddyFrequencyDependence {
+                e.second_eddy_path = Some((v[0], v[1]));
+            }
+            k += parameter_count_at(&candidate.effects, i);
+            continue;
+        }
         match effect {
             EffectName::EddyFrequencyDependence => {
-                // R_dc from the refitted R and the anchor; R_hf = ratio · R_dc.
-                e.eddy_resistance_ohm = values[0] * (-v[2] * v[0].ln()).exp();
                 e.eddy_path = Some((v[0], v[1]));
+                eddy_anchor = Some(v[2]);
             }
             EffectName::AmplifierBandwidth => e.amplifier = Some((v[0], v[1])),
             EffectName::SensorDynamics => m.sensor = Some((v[0], v[1], v[2])),
@@ -501,6 +614,14 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
             EffectName::MechanicalLoad => m.load = Some((v[0], v[1], v[2])),
         }
         k += effect_parameter_count(effect);
+    }
+    // R_dc from the refitted R and the anchor: ln R = ln R_dc + anchor · ln(total R step).
+    if let (Some(anchor), Some((ratio, _))) = (eddy_anchor, e.eddy_path) {
+        let log_step = match e.second_eddy_path {
+            Some((second, _)) => ratio.ln() + second.ln(),
+            None => ratio.ln(),
+        };
+        e.eddy_resistance_ohm = values[0] * (-anchor * log_step).exp();
     }
     (e, m)
 }
@@ -552,6 +673,50 @@ mod tests {
             for s in effect_starts(e, &n) {
                 assert_eq!(s.len(), effect_parameter_count(e));
             }
+        }
+    }
+
+    #[test]
+    fn a_richer_form_adds_its_second_term_after_the_rest() {
+        let n = Nominal::from_params(&actuator_params::paper_defaults());
+        let eddy = EffectName::EddyFrequencyDependence;
+        let amp = EffectName::AmplifierBandwidth;
+        let c = Candidate::single(eddy).with_richer(eddy);
+        assert_eq!(c.name(), "eddy_frequency_dependence(2 paths)");
+        assert_eq!(c.distinct_effects(), vec![eddy]);
+        let specs = parameters(&c, &n, &REFIT_RANGE);
+        assert_eq!(specs.len(), COMMON_PARAMETER_COUNT + 3 + 2);
+        assert_eq!(parameter_count_at(&c.effects, 1), 2);
+        // R_dc from the refitted R (60 ohm) and the anchor over the whole step (3 x 2).
+        let (e, _) = model_parameters(&c, &[60.0, 0.7, 400.0, 0.0, 3.0, 100.0, 0.5, 2.0, 1000.0]);
+        assert_eq!(e.eddy_path, Some((3.0, 100.0)));
+        assert_eq!(e.second_eddy_path, Some((2.0, 1000.0)));
+        assert!((e.eddy_resistance_ohm - 60.0 / 6f64.sqrt()).abs() < 1e-12);
+        // A pair with the richer eddy: the second path's parameters come last.
+        let pair = Candidate {
+            effects: vec![amp, eddy],
+        }
+        .with_richer(eddy);
+        assert_eq!(
+            pair.name(),
+            "amplifier_bandwidth+eddy_frequency_dependence(2 paths)"
+        );
+        assert_eq!(pair.without(eddy), Candidate::single(amp));
+        let values = [
+            60.0, 0.7, 400.0, 0.0, 900.0, 0.7, 3.0, 100.0, 0.5, 2.0, 1000.0,
+        ];
+        assert_eq!(parameters(&pair, &n, &REFIT_RANGE).len(), values.len());
+        let (e, _) = model_parameters(&pair, &values);
+        assert_eq!(e.amplifier, Some((900.0, 0.7)));
+        assert_eq!(e.second_eddy_path, Some((2.0, 1000.0)));
+        // Only effects with a richer form have a second term.
+        assert!(second_term_parameters(amp, &n).is_empty());
+        for e in RICHER_FORM {
+            assert_eq!(
+                second_term_parameters(e, &n).len(),
+                second_term_parameter_count(e)
+            );
+            assert!(!second_term_starts(e, &effect_starts(e, &n)[0]).is_empty());
         }
     }
 

@@ -18,6 +18,7 @@
 //! record.
 
 use crate::candidates::{self, Candidate, ParamSpec, Stage, COMMON_PARAMETER_COUNT};
+use crate::effects::EffectName;
 use crate::model::{
     chained_temperature, run_electro, run_mech, Electro, ElectroRun, Interpolation, Mech,
     ModelStart, Nominal,
@@ -222,11 +223,16 @@ impl Fitted {
         let several = self.candidate.effects.len() > 1;
         let shared = &self.specs[..COMMON_PARAMETER_COUNT.min(self.specs.len())];
         let mut k = COMMON_PARAMETER_COUNT;
-        for &e in &self.candidate.effects {
-            let n = candidates::effect_parameter_count(e);
+        for (i, &e) in self.candidate.effects.iter().enumerate() {
+            let n = candidates::parameter_count_at(&self.candidate.effects, i);
+            let owner = if candidates::is_repeat(&self.candidate.effects, i) {
+                format!("{}.second_path", e.name())
+            } else {
+                e.name().to_string()
+            };
             for s in self.specs.iter().skip(k).take(n) {
                 names.push(if several || shared.iter().any(|c| c.name == s.name) {
-                    format!("{}.{}", e.name(), s.name)
+                    format!("{owner}.{}", s.name)
                 } else {
                     s.name.to_string()
                 });
@@ -255,7 +261,7 @@ impl Fitted {
         let mut values = self.values[..COMMON_PARAMETER_COUNT].to_vec();
         let mut k = COMMON_PARAMETER_COUNT;
         for (i, &e) in self.candidate.effects.iter().enumerate() {
-            let n = candidates::effect_parameter_count(e);
+            let n = candidates::parameter_count_at(&self.candidate.effects, i);
             if i != drop {
                 effects.push(e);
                 specs.extend_from_slice(&self.specs[k..k + n]);
@@ -272,6 +278,16 @@ impl Fitted {
         }
     }
 
+    /// The same fit with every listing of `effect` switched off (every other value unchanged).
+    pub fn without(&self, effect: EffectName) -> Fitted {
+        let mut out = self.clone();
+        while let Some(i) = out.candidate.effects.iter().rposition(|&e| e == effect) {
+            out = out.without_effect(i);
+        }
+        out.evaluations = 0;
+        out
+    }
+
     /// The same fit with only the first `keep` effects (the others switched off, every other
     /// value unchanged): what the fit owes to the effects dropped.
     pub fn knocked_out(&self, keep: usize) -> Fitted {
@@ -279,10 +295,8 @@ impl Fitted {
             effects: self.candidate.effects[..keep.min(self.candidate.effects.len())].to_vec(),
         };
         let n = COMMON_PARAMETER_COUNT
-            + candidate
-                .effects
-                .iter()
-                .map(|&e| candidates::effect_parameter_count(e))
+            + (0..candidate.effects.len())
+                .map(|i| candidates::parameter_count_at(&candidate.effects, i))
                 .sum::<usize>();
         Fitted {
             specs: self.specs[..n].to_vec(),
@@ -552,5 +566,61 @@ pub fn fit(
         values,
         training_rms_m: (best.0 / n_res.max(1) as f64).sqrt(),
         evaluations: evaluations.load(Ordering::Relaxed),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Nominal;
+
+    #[test]
+    fn switching_an_effect_off_drops_every_term_of_it_and_keeps_the_rest_aligned() {
+        let n = Nominal::from_params(&actuator_params::paper_defaults());
+        let (eddy, amp) = (
+            EffectName::EddyFrequencyDependence,
+            EffectName::AmplifierBandwidth,
+        );
+        let candidate = Candidate {
+            effects: vec![eddy, amp],
+        }
+        .with_richer(eddy);
+        let specs = candidates::parameters(&candidate, &n, &candidates::REFIT_RANGE);
+        // Common, eddy (3), amplifier (2), eddy's second path (2).
+        let values = vec![
+            60.0, 0.7, 400.0, 0.1, 3.0, 100.0, 0.5, 900.0, 0.8, 2.0, 1000.0,
+        ];
+        assert_eq!(specs.len(), values.len());
+        let f = Fitted {
+            candidate,
+            specs,
+            values,
+            training_rms_m: 1e-7,
+            evaluations: 9,
+        };
+        let amp_only = f.without(eddy);
+        assert_eq!(amp_only.candidate, Candidate::single(amp));
+        assert_eq!(amp_only.values, vec![60.0, 0.7, 400.0, 0.1, 900.0, 0.8]);
+        let richer_eddy = f.without(amp);
+        assert_eq!(
+            richer_eddy.candidate.name(),
+            "eddy_frequency_dependence(2 paths)"
+        );
+        assert_eq!(
+            richer_eddy.values,
+            vec![60.0, 0.7, 400.0, 0.1, 3.0, 100.0, 0.5, 2.0, 1000.0]
+        );
+        // Knocking out the last listing drops the second path only.
+        let one_path = f.knocked_out(2);
+        assert_eq!(
+            one_path.candidate.name(),
+            "eddy_frequency_dependence+amplifier_bandwidth"
+        );
+        assert_eq!(one_path.values.len(), 9);
+        assert_eq!(
+            f.report_names().last().map(String::as_str),
+            Some("eddy_frequency_dependence.second_path.corner_hz")
+        );
+        assert!(f.pinned().is_empty());
     }
 }
