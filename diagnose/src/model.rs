@@ -796,6 +796,20 @@ pub fn chained_temperature(mech: &Mech, history: &[&[f64]], step_s: f64) -> (f64
 mod tests {
     use super::*;
 
+    /// The nominal constants and the Preisach measure of the paper's parameters.
+    fn paper_model() -> (Nominal, PreisachMeasure) {
+        let params = actuator_params::paper_defaults();
+        let core = magctl::params::ActuatorParameters::from_file(&params, "defaults").unwrap();
+        (Nominal::from_params(&params), core.preisach.measure())
+    }
+
+    /// The largest absolute difference between two runs.
+    fn max_difference(a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    }
+
     #[test]
     fn second_order_step_tracks_a_ramp_and_settles() {
         // A critically damped 2nd-order low-pass driven by a ramp lags it by 2ζ/ω in steady state.
@@ -817,10 +831,7 @@ mod tests {
         // ΔE with zero coefficients takes the RK4 loop with the same stiffness; without ΔE the
         // same substep runs as its matrix. Both must agree to rounding, with and without the
         // load mode and the thermal input.
-        let params = actuator_params::paper_defaults();
-        let nominal = Nominal::from_params(&params);
-        let core = magctl::params::ActuatorParameters::from_file(&params, "defaults").unwrap();
-        let measure = core.preisach.measure();
+        let (nominal, measure) = paper_model();
         let step_s = 1e-4;
         let currents: Vec<f64> = (0..2000)
             .map(|k| 0.3 + 0.25 * (2.0 * PI * 150.0 * k as f64 * step_s).sin())
@@ -848,10 +859,7 @@ mod tests {
             mech.delta_e = Some((0.0, 0.0, 0.0, 0.0));
             let looped = run_mech(&nominal, &mech, &run, currents.len(), step_s, (0.0, 0.0));
             let scale = looped.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            let worst = matrix
-                .iter()
-                .zip(&looped)
-                .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+            let worst = max_difference(&matrix, &looped);
             assert!(
                 worst <= 1e-12 * scale,
                 "{load:?} {thermal:?}: {worst:e} of {scale:e}"
@@ -899,10 +907,7 @@ mod tests {
     fn a_second_eddy_path_that_steps_nothing_is_the_one_path_model() {
         // Its share of Z is zero, so the two-path step (the general κ) must reproduce the
         // one-path step to rounding.
-        let params = actuator_params::paper_defaults();
-        let nominal = Nominal::from_params(&params);
-        let core = magctl::params::ActuatorParameters::from_file(&params, "defaults").unwrap();
-        let measure = core.preisach.measure();
+        let (nominal, measure) = paper_model();
         let step_s = 1e-4;
         let currents: Vec<f64> = (0..1500)
             .map(|k| 0.3 + 0.25 * (2.0 * PI * 220.0 * k as f64 * step_s).sin())
@@ -927,18 +932,12 @@ mod tests {
         two.second_eddy_path = Some((1.0, 2000.0));
         let (a, b) = (run(&one), run(&two));
         let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let worst = a
-            .iter()
-            .zip(&b)
-            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        let worst = max_difference(&a, &b);
         assert!(worst <= 1e-6 * scale, "{worst:e} of {scale:e}");
         // And the second path does act when it steps R.
         two.second_eddy_path = Some((2.0, 300.0));
         let c = run(&two);
-        let moved = a
-            .iter()
-            .zip(&c)
-            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        let moved = max_difference(&a, &c);
         assert!(moved > 1e-3 * scale, "{moved:e} of {scale:e}");
     }
 
