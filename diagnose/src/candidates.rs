@@ -20,7 +20,7 @@
 //! | `reversible_magnetization` | `susceptibility`, `saturation_field_a_per_m`, `shape` | `χ_r H / (1 + |H/H_s|^p)^(1/p)` |
 //! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `1 − g φ`, strain `e φ`; `τ` at least two periods of the slowest dynamic excitation ([`thermal_time_constant_min_s`]) |
 //! | `delta_e_effect` | `stiffness_m2`, `stiffness_m4`, `stiffness_m6`, `stiffness_stress` | `ω² = ω0² (1 + d₁ m² + d₂ m⁴ + d₃ m⁶ + d_σ ε)`, `m = M/M_s`, `ε = (y − u)/stroke` the elastic strain (stress) |
-//! | `mechanical_load` | `mass_ratio`, `coupling_hz`, `damping_ratio` | one load mode |
+//! | `mechanical_load` | `mass_ratio`, `coupling_hz`, `damping_ratio` | one load mode (a mass coupled to the rod by a spring and a damper; the sensor reads it); its richer form ([`RICHER_FORM`], second stage only) hangs a second mass on it, `mass_ratio` (to the first load mass), `coupling_hz` and `damping_ratio` of its own |
 //!
 //! Parameters are optimized in an unbounded coordinate `z`: `value = lo + (hi − lo) σ(z)` with
 //! the algebraic sigmoid `σ(z) = (1 + z/√(1 + z²))/2` (on `ln value` for log-scaled ones), so
@@ -180,18 +180,27 @@ impl Candidate {
 }
 
 /// Effects whose library form is the first term of a series that an actuator may show more of,
-/// and which a candidate may therefore list twice (still one effect, in a richer form): a
-/// second extra eddy path (the eddy currents of a rod diffuse from the surface inwards, so the
-/// effective resistance rises over a wide band rather than at one corner; one path follows
-/// that over about a decade). Tried in the second stage of the diagnosis
-/// ([`crate::diagnosis`]), so that a second effect is not missed because the first one's
-/// library form was too narrow.
-pub const RICHER_FORM: [EffectName; 1] = [EffectName::EddyFrequencyDependence];
+/// and which a candidate may therefore list twice (still one effect, in a richer form):
+/// * a second extra eddy path (the eddy currents of a rod diffuse from the surface inwards, so
+///   the effective resistance rises over a wide band rather than at one corner; one path
+///   follows that over about a decade);
+/// * a second load mass hanging on the first (a fixture or a payload on a flexible mount has a
+///   mode of its own above the coupling's).
+///
+/// Tried in the second stage of the diagnosis ([`crate::diagnosis`]): a second effect is not
+/// missed because the first one's library form was too narrow, and a second effect is not
+/// named for what a richer form of the first (or a better optimum of its library form)
+/// explains.
+pub const RICHER_FORM: [EffectName; 2] = [
+    EffectName::EddyFrequencyDependence,
+    EffectName::MechanicalLoad,
+];
 
 /// The report name of an effect's richer form.
 pub fn richer_form_name(effect: EffectName) -> String {
     match effect {
         EffectName::EddyFrequencyDependence => format!("{}(2 paths)", effect.name()),
+        EffectName::MechanicalLoad => format!("{}(2 modes)", effect.name()),
         _ => effect.name().to_string(),
     }
 }
@@ -496,7 +505,17 @@ pub fn second_term_parameters(effect: EffectName, nominal: &Nominal) -> Vec<Para
             .into_iter()
             .take(2)
             .collect(),
+        EffectName::MechanicalLoad => effect_parameters(effect, nominal),
         _ => Vec::new(),
+    }
+}
+
+/// The report's name for the second term of an effect's richer form (its parameters read
+/// `effect.label.parameter`).
+pub fn second_term_label(effect: EffectName) -> &'static str {
+    match effect {
+        EffectName::MechanicalLoad => "second_mode",
+        _ => "second_path",
     }
 }
 
@@ -504,6 +523,7 @@ pub fn second_term_parameters(effect: EffectName, nominal: &Nominal) -> Vec<Para
 pub fn second_term_parameter_count(effect: EffectName) -> usize {
     match effect {
         EffectName::EddyFrequencyDependence => 2,
+        EffectName::MechanicalLoad => 3,
         _ => 0,
     }
 }
@@ -515,6 +535,10 @@ pub fn second_term_starts(effect: EffectName, first: &[f64]) -> Vec<Vec<f64>> {
         (EffectName::EddyFrequencyDependence, [_, corner, ..]) => [0.1, 10.0]
             .iter()
             .map(|k| vec![2.0, (corner * k).clamp(12.0, 4000.0)])
+            .collect(),
+        (EffectName::MechanicalLoad, [_, coupling, ..]) => [0.3, 1.0]
+            .iter()
+            .flat_map(|&mass| [2.0, 4.0, 8.0].map(|k| vec![mass, coupling * k, 0.1]))
             .collect(),
         _ => Vec::new(),
     }
@@ -594,9 +618,11 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
     for (i, &effect) in candidate.effects.iter().enumerate() {
         let v = &values[k..];
         if is_repeat(&candidate.effects, i) {
-            // Only the eddy effect has a second term ([`RICHER_FORM`]).
-            if effect == EffectName::EddyFrequencyDependence {
-                e.second_eddy_path = Some((v[0], v[1]));
+            // The second term of a richer form ([`RICHER_FORM`]).
+            match effect {
+                EffectName::EddyFrequencyDependence => e.second_eddy_path = Some((v[0], v[1])),
+                EffectName::MechanicalLoad => m.second_load = Some((v[0], v[1], v[2])),
+                _ => {}
             }
             k += parameter_count_at(&candidate.effects, i);
             continue;
@@ -718,6 +744,37 @@ mod tests {
             );
             assert!(!second_term_starts(e, &effect_starts(e, &n)[0]).is_empty());
         }
+    }
+
+    #[test]
+    fn a_two_mode_load_hangs_its_second_mass_on_the_first() {
+        let n = Nominal::from_params(&actuator_params::paper_defaults());
+        let load = EffectName::MechanicalLoad;
+        let c = Candidate::single(load).with_richer(load);
+        assert_eq!(c.name(), "mechanical_load(2 modes)");
+        assert_eq!(second_term_label(load), "second_mode");
+        let specs = parameters(&c, &n, &REFIT_RANGE);
+        assert_eq!(specs.len(), COMMON_PARAMETER_COUNT + 3 + 3);
+        // The second mode's ranges are the first's (mass relative to the first load mass).
+        assert_eq!(specs[7..], specs[4..7]);
+        let (_, m) = model_parameters(
+            &c,
+            &[60.0, 0.7, 400.0, 0.0, 0.3, 600.0, 0.1, 0.5, 2400.0, 0.08],
+        );
+        assert_eq!(m.load, Some((0.3, 600.0, 0.1)));
+        assert_eq!(m.second_load, Some((0.5, 2400.0, 0.08)));
+        // Its starts: two masses at 2, 4 and 8 times the first coupling.
+        let starts = second_term_starts(load, &[0.3, 600.0, 0.1]);
+        assert_eq!(starts.len(), 6);
+        assert!(starts
+            .iter()
+            .all(|s| s.len() == 3 && s[1] >= 1200.0 && s[1] <= 4800.0));
+        // One-mode candidates keep no second mass.
+        let (_, one) = model_parameters(
+            &Candidate::single(load),
+            &[60.0, 0.7, 400.0, 0.0, 0.3, 600.0, 0.1],
+        );
+        assert_eq!(one.second_load, None);
     }
 
     #[test]

@@ -226,7 +226,7 @@ impl Fitted {
         for (i, &e) in self.candidate.effects.iter().enumerate() {
             let n = candidates::parameter_count_at(&self.candidate.effects, i);
             let owner = if candidates::is_repeat(&self.candidate.effects, i) {
-                format!("{}.second_path", e.name())
+                format!("{}.{}", e.name(), candidates::second_term_label(e))
             } else {
                 e.name().to_string()
             };

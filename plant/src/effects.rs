@@ -10,7 +10,7 @@
 //! | `reversible_magnetization` | saturating anhysteretic term `χ₀ H_r tanh(H / H_r)` | constant susceptibility |
 //! | `thermal_drift` | two-node thermal network (coil, rod), copper resistance rising with temperature, λ_s falling and the rod expanding with the rod temperature | one time constant |
 //! | `delta_e_effect` | stiffness `(1 + d)/(1 + d (1 − m²)²) + s ε` (magnetization and dynamic stress `ε`) | stiffness polynomial in `m²` |
-//! | `mechanical_load` | two load masses in a chain (two modes) | one load mode |
+//! | `mechanical_load` | two load masses in a chain (two modes) | one load mode; in the second stage also a second mass on it — the chain's form, met only in its parameterization (each mass relative to the one before), integrator and the rest of the plant |
 //!
 //! Not in the diagnosis library (a diagnosis must call them `unexplained`): `backlash` (play in
 //! the linkage to the sensor), `stick_slip` (static and kinetic friction at the rod end),
