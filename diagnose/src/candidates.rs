@@ -486,6 +486,15 @@ pub fn is_repeat(effects: &[EffectName], i: usize) -> bool {
     effects[..i].contains(&effects[i])
 }
 
+/// Where `effects[i]`'s parameters start in a candidate's value vector (after the common ones
+/// and those of the effects listed before it).
+pub fn parameter_offset(effects: &[EffectName], i: usize) -> usize {
+    COMMON_PARAMETER_COUNT
+        + (0..i)
+            .map(|k| parameter_count_at(effects, k))
+            .sum::<usize>()
+}
+
 /// Number of parameters of `effects[i]`: the effect's own, or its second term's when it is a
 /// repeat ([`RICHER_FORM`]).
 pub fn parameter_count_at(effects: &[EffectName], i: usize) -> usize {

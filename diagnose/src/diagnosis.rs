@@ -938,16 +938,12 @@ pub fn diagnose(
                 .and_then(|p| {
                     let f = &pairs[p].1;
                     let cand = &f.fitted.candidate;
-                    let effect = *cand
+                    let i = cand
                         .effects
                         .iter()
-                        .find(|e| candidates::RICHER_FORM.contains(e))?;
-                    let at = COMMON_PARAMETER_COUNT
-                        + if cand.effects[0] == effect {
-                            0
-                        } else {
-                            candidates::effect_parameter_count(cand.effects[0])
-                        };
+                        .position(|e| candidates::RICHER_FORM.contains(e))?;
+                    let effect = cand.effects[i];
+                    let at = candidates::parameter_offset(&cand.effects, i);
                     let n = candidates::effect_parameter_count(effect);
                     let values = &f.fitted.values;
                     let with_first_term = |term: &[f64]| -> Vec<Vec<f64>> {
@@ -997,10 +993,7 @@ pub fn diagnose(
                 .filter_map(|&effect| {
                     let cand = &pair_fit.fitted.candidate;
                     let i = cand.effects.iter().position(|&e| e == effect)?;
-                    let at = COMMON_PARAMETER_COUNT
-                        + (0..i)
-                            .map(|k| candidates::parameter_count_at(&cand.effects, k))
-                            .sum::<usize>();
+                    let at = candidates::parameter_offset(&cand.effects, i);
                     let n = candidates::effect_parameter_count(effect);
                     let values = &pair_fit.fitted.values;
                     let single = ranked.iter().find(|r| r.0.effect == effect.name())?;
