@@ -19,7 +19,7 @@
 //! | `sensor_dynamics` | `natural_hz`, `damping_ratio`, `delay_s` | second-order low-pass and a delay on the reading |
 //! | `reversible_magnetization` | `susceptibility`, `saturation_field_a_per_m`, `shape` | `χ_r H / (1 + |H/H_s|^p)^(1/p)` |
 //! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `1 − g φ`, strain `e φ`; `τ` at least two periods of the slowest dynamic excitation ([`thermal_time_constant_min_s`]) |
-//! | `delta_e_effect` | `stiffness_at_third`, `stiffness_at_two_thirds`, `stiffness_at_saturation`, `stiffness_stress` | `ω² = ω0² (1 + d₁ m² + d₂ m⁴ + d₃ m⁶ + d_σ ε)`, `m = M/M_s`, `ε = (y − u)/stroke` the elastic strain (stress); the cubic in `m²` is given by its values `ω²/ω0²` at `m² = 1/3, 2/3, 1` ([`delta_e_coefficients`]), each in 0.1–10 |
+//! | `delta_e_effect` | `stiffness_m2`, `stiffness_m4`, `stiffness_m6`, `stiffness_stress` | `ω² = ω0² (1 + d₁ m² + d₂ m⁴ + d₃ m⁶ + d_σ ε)`, `m = M/M_s`, `ε = (y − u)/stroke` the elastic strain (stress) |
 //! | `mechanical_load` | `mass_ratio`, `coupling_hz`, `damping_ratio` | one load mode (a mass coupled to the rod by a spring and a damper; the sensor reads it); its richer form ([`RICHER_FORM`], second stage only) hangs a second mass on it, `mass_ratio` (to the first load mass), `coupling_hz` and `damping_ratio` of its own |
 //!
 //! Parameters are optimized in an unbounded coordinate `z`: `value = lo + (hi − lo) σ(z)` with
@@ -406,34 +406,29 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
             },
         ],
         EffectName::DeltaEEffect => vec![
-            // The stiffness ratio ω²/ω0² at the nodes m² = 1/3, 2/3, 1 (see
-            // [`delta_e_coefficients`]): a limit here is a physical extreme (a rod ten times
-            // softer or stiffer), not an arbitrary bound on a polynomial coefficient.
             ParamSpec {
-                name: "stiffness_at_third",
-                lo: DELTA_E_STIFFNESS_RANGE.0,
-                hi: DELTA_E_STIFFNESS_RANGE.1,
-                log: true,
+                name: "stiffness_m2",
+                lo: -0.8,
+                hi: 10.0,
+                log: false,
                 stage: B,
                 edge: Edge::Both,
             },
             ParamSpec {
-                name: "stiffness_at_two_thirds",
-                lo: DELTA_E_STIFFNESS_RANGE.0,
-                hi: DELTA_E_STIFFNESS_RANGE.1,
-                log: true,
+                name: "stiffness_m4",
+                lo: -10.0,
+                hi: 10.0,
+                log: false,
                 stage: B,
                 edge: Edge::Both,
             },
-            // Never "pinned": experiments rarely reach saturation, so the cubic's value there is
-            // an extrapolation its range only keeps sane, not a physical claim.
             ParamSpec {
-                name: "stiffness_at_saturation",
-                lo: DELTA_E_STIFFNESS_RANGE.0,
-                hi: DELTA_E_STIFFNESS_RANGE.1,
-                log: true,
+                name: "stiffness_m6",
+                lo: -10.0,
+                hi: 10.0,
+                log: false,
                 stage: B,
-                edge: Edge::None,
+                edge: Edge::Both,
             },
             ParamSpec {
                 name: "stiffness_stress",
@@ -607,11 +602,8 @@ pub fn effect_starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
             }
         }
         EffectName::DeltaEEffect => {
-            // Stiffness linear in m² (softening, mild and strong stiffening), no stress term.
             for d in [-0.3, 0.5, 2.0] {
-                let mut start: Vec<f64> = DELTA_E_NODES_M2.iter().map(|x| 1.0 + d * x).collect();
-                start.push(0.0);
-                out.push(start);
+                out.push(vec![d, 0.0, 0.0, 0.0]);
             }
         }
         EffectName::MechanicalLoad => {
@@ -623,31 +615,6 @@ pub fn effect_starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
         }
     }
     out
-}
-
-/// The nodes (in `m² = (M/M_s)²`) at which the ΔE candidate's stiffness is parametrized.
-pub const DELTA_E_NODES_M2: [f64; 3] = [1.0 / 3.0, 2.0 / 3.0, 1.0];
-
-/// Range of the ΔE candidate's stiffness ratio `ω²/ω0²` at each node (log-scaled).
-pub const DELTA_E_STIFFNESS_RANGE: (f64, f64) = (0.1, 10.0);
-
-/// The coefficients `d₁, d₂, d₃` of the ΔE stiffness `1 + d₁ x + d₂ x² + d₃ x³` (`x = m²`, the
-/// form [`crate::model`] evaluates) that pass through the stiffness ratios `k` at
-/// [`DELTA_E_NODES_M2`] and through 1 at `x = 0`.
-///
-/// `q(x) = (p(x) − 1)/x = d₁ + d₂ x + d₃ x²` is the quadratic through `(xᵢ, (kᵢ − 1)/xᵢ)`;
-/// Newton's divided differences give it exactly (three nodes, no linear solve).
-pub fn delta_e_coefficients(k: [f64; 3]) -> [f64; 3] {
-    let x = DELTA_E_NODES_M2;
-    let q: Vec<f64> = (0..3).map(|i| (k[i] - 1.0) / x[i]).collect();
-    let q01 = (q[1] - q[0]) / (x[1] - x[0]);
-    let q12 = (q[2] - q[1]) / (x[2] - x[1]);
-    let q012 = (q12 - q01) / (x[2] - x[0]);
-    // q(x) = q0 + q01 (x − x0) + q012 (x − x0)(x − x1), expanded in powers of x.
-    let d3 = q012;
-    let d2 = q01 - q012 * (x[0] + x[1]);
-    let d1 = q[0] - q01 * x[0] + q012 * x[0] * x[1];
-    [d1, d2, d3]
 }
 
 /// The model parameters a candidate's values (physical units, [`parameters`] order) stand for.
@@ -678,10 +645,7 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
             EffectName::SensorDynamics => m.sensor = Some((v[0], v[1], v[2])),
             EffectName::ReversibleMagnetization => e.reversible = Some((v[0], v[1], v[2])),
             EffectName::ThermalDrift => m.thermal = Some((v[0], v[1], v[2], v[3])),
-            EffectName::DeltaEEffect => {
-                let [d1, d2, d3] = delta_e_coefficients([v[0], v[1], v[2]]);
-                m.delta_e = Some((d1, d2, d3, v[3]));
-            }
+            EffectName::DeltaEEffect => m.delta_e = Some((v[0], v[1], v[2], v[3])),
             EffectName::MechanicalLoad => m.load = Some((v[0], v[1], v[2])),
         }
         k += effect_parameter_count(effect);
@@ -712,31 +676,6 @@ pub fn effect_parameter_count(effect: EffectName) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn delta_e_stiffness_at_the_nodes_gives_the_cubic_through_them() {
-        // No change at any node: no ΔE at all.
-        assert_eq!(delta_e_coefficients([1.0; 3]), [0.0; 3]);
-        // Any cubic in m² with p(0) = 1 is recovered from its values at the nodes.
-        let cubic = |d: [f64; 3], x: f64| 1.0 + x * (d[0] + x * (d[1] + x * d[2]));
-        for d in [
-            [1.33, 1.5, -0.8],
-            [-0.8, 3.98, -2.44],
-            [4.71, -9.41, 9.97],
-            [0.5, 0.0, 0.0],
-        ] {
-            let k = DELTA_E_NODES_M2.map(|x| cubic(d, x));
-            let back = delta_e_coefficients(k);
-            for (a, b) in back.iter().zip(d) {
-                assert!((a - b).abs() < 1e-12, "{back:?} against {d:?}");
-            }
-        }
-        // The library starts are stiffness linear in m².
-        let nominal = Nominal::from_params(&actuator_params::paper_defaults());
-        let starts = effect_starts(EffectName::DeltaEEffect, &nominal);
-        let d = delta_e_coefficients([starts[1][0], starts[1][1], starts[1][2]]);
-        assert!((d[0] - 0.5).abs() < 1e-12 && d[1].abs() < 1e-12 && d[2].abs() < 1e-12);
-    }
 
     #[test]
     fn coordinates_round_trip_and_stay_in_range() {
