@@ -58,8 +58,8 @@
 //!    one frequency band best (up to two more: a slow and a fast effect each show in their own
 //!    bands) is refitted, and so are the best single candidate and the runner-up (the next that
 //!    pins nothing) each with every other effect of the library (forward selection: an effect
-//!    the first one masks fits badly alone, and the best single may stand in for both). The best pair
-//!    is named (the second effect as an `additional_effect`) when its held-out gap is at most
+//!    the first one masks fits badly alone, and the best single may stand in for both). The
+//!    best pair is named (the second effect as an `additional_effect`) when its held-out gap is at most
 //!    half the first effect's alone and half the refitted nominal one, it makes at most a
 //!    quarter of the held-out experiments worse, pins no parameter, and both its effects are
 //!    needed: with either switched off and the rest refitted, the gap is at least twice as large.
@@ -72,10 +72,10 @@
 //!    taken again from the single candidates.
 //!    When no pair is named, the pair with an effect that has a richer form
 //!    ([`crate::candidates::RICHER_FORM`]: eddy currents with a second path, a load with a
-//!    second mass) that fits the
-//!    training experiments best — if it fits them at least as well as the best pair (the one
-//!    best on the held-out experiments), or is that pair — is refitted with that effect in its richer form (started from
-//!    the pair's optimum and from the effect's library starts) and named if it passes the same
+//!    second mass) that fits the training experiments best — if it fits them at least as well
+//!    as the best pair (the one best on the held-out experiments), or is that pair — is
+//!    refitted with that effect in its richer form (started from the pair's optimum and from
+//!    the effect's library starts) and named if it passes the same
 //!    test: a rod's eddy currents diffuse, and one path stretched to cover a ladder of them
 //!    may fit the training experiments and miss the top band (seed 7 case 26 of the blind
 //!    suite: a five-path ladder with a reversible term, `unexplained` with one path; with two
@@ -933,8 +933,7 @@ pub fn diagnose(
         }
         // When no pair is named, the pair with an effect that has a richer form that fits the
         // training experiments best (at least as well as the best pair) is refitted with that
-        // effect in its richer form (a second path,
-        // [`candidates::RICHER_FORM`]), started from the pair's optimum and from the effect's
+        // effect in its richer form ([`candidates::RICHER_FORM`]), started from the pair's optimum and from the effect's
         // library starts, and named if it passes the same test: a rod's eddy currents diffuse,
         // and one path, stretched to cover a ladder of them, may fit the training experiments
         // and miss the top band (seed 7 case 26 of the blind suite: a five-path ladder with a
