@@ -353,6 +353,11 @@ pub struct Diagnosis {
     pub nominal_systematic_m: f64,
     /// How far the refit could move the constants, and why (step 6).
     pub constants_range: ConstantsRange,
+    /// Effects beyond the paper's model that the parameter file models because its
+    /// identification found them in the data (`provenance.identified`: a reversible part
+    /// `maglab identify --reversible auto` kept). They are part of the verdict: the rig
+    /// differs from the paper's model by them, though not from the file's.
+    pub effects_in_parameter_file: Vec<String>,
     /// The warnings `maglab identify` recorded in the parameter file (`provenance.warnings`:
     /// its model did not describe the data it was identified from), repeated so that a verdict
     /// is never read without them.
@@ -1207,6 +1212,23 @@ pub fn diagnose(
             base.offset_preds(),
         )
     };
+    // Effects the identification found in the data and put into the file (module docs): named
+    // with the diagnosis's own, first when the diagnosis names none.
+    let effects_in_parameter_file = effects_identified_into(params);
+    let (mut verdict, mut reason) = (verdict, reason);
+    for effect in &effects_in_parameter_file {
+        let why = format!(
+            "{effect} is in the parameter file: its identification found it in the data \
+             (provenance.identified), and the paper's model lacks it"
+        );
+        if verdict == "none" {
+            verdict = effect.clone();
+            reason = format!("{why}; with it, {reason}");
+        } else {
+            additional_effects.push(effect.clone());
+            reason = format!("{reason}; {why}");
+        }
+    }
     let ambiguous_with = match winner {
         Some(w) if verdict != "none" => {
             let best = ranked[w].0.held_out_rms_after_m;
@@ -1247,6 +1269,7 @@ pub fn diagnose(
             nominal_rms_m: nominal_rms,
             nominal_systematic_m: nominal_systematic,
             constants_range,
+            effects_in_parameter_file,
             parameter_file_warnings: params
                 .provenance
                 .warnings()
@@ -1568,6 +1591,22 @@ impl PlanFitter<'_> {
                 plan,
             },
         }
+    }
+}
+
+/// Effects beyond the paper's model that `params` models and lists as identified from data:
+/// a reversible part (`preisach.reversible_susceptibility` in `provenance.identified`).
+fn effects_identified_into(params: &actuator_params::ActuatorParams) -> Vec<String> {
+    let identified = params.provenance.identified_fields();
+    let reversible = params
+        .preisach
+        .reversible_susceptibility
+        .as_ref()
+        .is_some_and(|chi| chi.iter().any(|&c| c > 0.0));
+    if reversible && identified.contains(&"preisach.reversible_susceptibility") {
+        vec![EffectName::ReversibleMagnetization.name().to_string()]
+    } else {
+        Vec::new()
     }
 }
 
@@ -1947,6 +1986,31 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(differ > 0.01 * nominal.saturation_a_per_m, "{differ}");
+    }
+
+    #[test]
+    fn a_reversible_part_is_an_effect_only_when_identified_from_data() {
+        let mut params = actuator_params::paper_defaults();
+        assert!(effects_identified_into(&params).is_empty());
+        // A reversible part the file's author wrote in (params/reversible-part.json): modelled,
+        // not found in data, so not an effect of the rig.
+        params.preisach.reversible_susceptibility = Some(vec![2.0; params.preisach.levels]);
+        assert!(effects_identified_into(&params).is_empty());
+        // As `maglab identify --reversible auto` writes it when it kept the part.
+        params.provenance.details.insert(
+            actuator_params::Provenance::IDENTIFIED.into(),
+            serde_json::json!([
+                "preisach.weights_a_per_m",
+                "preisach.reversible_susceptibility"
+            ]),
+        );
+        assert_eq!(
+            effects_identified_into(&params),
+            vec!["reversible_magnetization".to_string()]
+        );
+        // An identified part that came out zero everywhere is no effect.
+        params.preisach.reversible_susceptibility = Some(vec![0.0; params.preisach.levels]);
+        assert!(effects_identified_into(&params).is_empty());
     }
 
     #[test]

@@ -369,11 +369,23 @@ pub fn identify(
             weights: None,
         })
         .collect();
+    // With a reversible part the masses saturate at M_s (Σ masses <= M_s) and the part carries
+    // the magnetization beyond it (the paper's model alone keeps its masses free: what they
+    // absorb past M_s is what `--reversible auto` looks at).
+    let ms = model.saturation_magnetization_a_per_m;
+    let fit_options = FitOptions {
+        total_mass_at_most: if options.fit.reversible.is_piecewise() {
+            Some(options.fit.total_mass_at_most.map_or(ms, |cap| cap.min(ms)))
+        } else {
+            options.fit.total_mass_at_most
+        },
+        ..options.fit
+    };
     let result = fit(
         &grid,
         &experiments,
         Some(&base.preisach.weights_a_per_m),
-        &options.fit,
+        &fit_options,
     )?;
 
     let generic = PreisachModel {
@@ -489,7 +501,14 @@ fn provenance(
     d.insert("base_parameters".into(), json!(base_name));
     d.insert(
         actuator_params::Provenance::IDENTIFIED.into(),
-        json!(["preisach.weights_a_per_m"]),
+        if options.fit.reversible.is_piecewise() {
+            json!([
+                "preisach.weights_a_per_m",
+                "preisach.reversible_susceptibility"
+            ])
+        } else {
+            json!(["preisach.weights_a_per_m"])
+        },
     );
     d.insert(
         "not_identified".into(),

@@ -159,6 +159,12 @@ pub struct FitOptions {
     pub unexcited: Unexcited,
     /// Keep every n-th selected row in the regression (1 = all).
     pub row_stride: usize,
+    /// An upper bound on the sum of the masses (output units): the Preisach operator's output
+    /// at saturation. An actuator's masses sum to at most its saturation magnetization `M_s`
+    /// (the paper's `M = Γ[H]`, `|M| <= M_s`); without the bound, output beyond it (a reversible
+    /// part, a sensor reading high) is absorbed into masses summing past `M_s` instead of being
+    /// left in the residual for the diagnosis. `None`: no bound.
+    pub total_mass_at_most: Option<f64>,
 }
 
 impl Default for FitOptions {
@@ -169,6 +175,7 @@ impl Default for FitOptions {
             reversible: Reversible::None,
             unexcited: Unexcited::Regularized,
             row_stride: 1,
+            total_mass_at_most: None,
         }
     }
 }
@@ -269,6 +276,13 @@ pub fn fit(
         if !(v.is_finite() && v >= 0.0) {
             return Err(FitError(format!(
                 "{name} must be a finite number >= 0, got {v}"
+            )));
+        }
+    }
+    if let Some(cap) = options.total_mass_at_most {
+        if !(cap.is_finite() && cap > 0.0) {
+            return Err(FitError(format!(
+                "total_mass_at_most must be a finite number > 0, got {cap}"
             )));
         }
     }
@@ -403,9 +417,10 @@ pub fn fit(
         // Monotone: every slope >= 0.
         free.extend(slope0..slope0 + LEVELS);
     }
-    let m = fixed.len() + free.len();
-    // One nonzero per constraint row; build column-wise.
-    let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(m); // (col, row, val)
+    let capped = usize::from(options.total_mass_at_most.is_some());
+    let m = fixed.len() + free.len() + capped;
+    // One nonzero per constraint row but the cap's (one per mass); build column-wise.
+    let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(m + CELL_COUNT); // (col, row, val)
     let mut b = vec![0.0; m];
     for (r, &(k, v)) in fixed.iter().enumerate() {
         entries.push((k, r, 1.0));
@@ -413,6 +428,14 @@ pub fn fit(
     }
     for (r, &k) in free.iter().enumerate() {
         entries.push((k, fixed.len() + r, -1.0));
+    }
+    if let Some(cap) = options.total_mass_at_most {
+        // cap - Σ_k w_k >= 0 (the last row of the nonnegative cone).
+        let r = m - 1;
+        for k in 0..CELL_COUNT {
+            entries.push((k, r, 1.0));
+        }
+        b[r] = cap / scale;
     }
     entries.sort_by_key(|e| (e.0, e.1));
     let mut a_colptr = vec![0usize; n + 1];
@@ -433,8 +456,8 @@ pub fn fit(
     if !fixed.is_empty() {
         cones.push(ZeroConeT(fixed.len()));
     }
-    if !free.is_empty() {
-        cones.push(NonnegativeConeT(free.len()));
+    if free.len() + capped > 0 {
+        cones.push(NonnegativeConeT(free.len() + capped));
     }
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)

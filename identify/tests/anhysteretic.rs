@@ -62,6 +62,7 @@ fn an_almost_anhysteretic_loop_is_carried_by_the_reversible_part() {
             reversible,
             unexcited: Unexcited::Regularized,
             row_stride: 1,
+            total_mass_at_most: None,
         };
         let (model, _) = fit_table(
             &table,

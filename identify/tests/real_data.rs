@@ -37,6 +37,7 @@ const OPTIONS: FitOptions = FitOptions {
     reversible: Reversible::Piecewise,
     unexcited: Unexcited::Regularized,
     row_stride: 1,
+    total_mass_at_most: None,
 };
 
 #[test]

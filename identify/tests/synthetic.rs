@@ -93,6 +93,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
             reversible: maglab_identify::fit::Reversible::None,
             unexcited: Unexcited::Regularized,
             row_stride: 1,
+            total_mass_at_most: None,
         },
     )
     .unwrap();
@@ -144,4 +145,88 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
         "held-out prediction error {:.4} % > 1 %",
         100.0 * worst
     );
+}
+
+/// `FitOptions::total_mass_at_most`: output 20 % past the saturation the masses can give (a
+/// reversible part, a sensor reading high) is absorbed into masses summing past it without the
+/// bound, and left in the residual with it; the bound holds to the solver's tolerance.
+#[test]
+fn the_mass_bound_keeps_the_masses_at_saturation() {
+    let p = actuator_params::paper_defaults();
+    let (h_min, h_max) = (p.preisach.h_min_a_per_m, p.preisach.h_max_a_per_m);
+    let reference =
+        RelayPreisach::new(&p.preisach.weights_a_per_m, h_min, h_max, SUBDIVISION).unwrap();
+    let saturation = reference.saturation_a_per_m();
+    let excitation = forc_excitation(&ExciteOptions {
+        h_min_a_per_m: h_min,
+        h_max_a_per_m: h_max,
+        coil_factor_per_m: p.actuator.coil_factor_per_m,
+        sweep_rate_hz: 1.0,
+        sample_rate_hz: 500.0,
+        overdrive: 0.01,
+    })
+    .unwrap();
+    let h: Vec<f64> = excitation
+        .current_a
+        .iter()
+        .map(|i| i * p.actuator.coil_factor_per_m)
+        .collect();
+    let mut state = reference.negative_saturation();
+    let m: Vec<f64> = h
+        .iter()
+        .map(|&v| 1.2 * reference.apply_a_per_m(&mut state, v))
+        .collect();
+    let selected = vec![true; h.len()];
+    let grid = Grid::uniform(h_min, h_max);
+    let sum_with = |cap: Option<f64>| {
+        let result = fit(
+            &grid,
+            &[Experiment {
+                label: "forc",
+                input: &h,
+                output: &m,
+                selected: &selected,
+                initial: InitialState::NegativeSaturation,
+                weights: None,
+            }],
+            None,
+            &FitOptions {
+                total_mass_at_most: cap,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap();
+        (result.weights.iter().sum::<f64>(), result.rms_residual)
+    };
+    let (free, free_rms) = sum_with(None);
+    let (bounded, bounded_rms) = sum_with(Some(saturation));
+    println!(
+        "sum of masses / saturation: free {:.4} (RMS residual {free_rms:.3e} A/m), bounded {:.6} \
+         (RMS residual {bounded_rms:.3e} A/m)",
+        free / saturation,
+        bounded / saturation
+    );
+    assert!(free > 1.15 * saturation);
+    assert!(bounded <= saturation * (1.0 + 1e-6));
+    assert!(bounded >= 0.95 * saturation);
+    assert!(bounded_rms > 10.0 * free_rms);
+    // A bound that is not a positive number is an error naming the option.
+    let err = fit(
+        &grid,
+        &[Experiment {
+            label: "forc",
+            input: &h,
+            output: &m,
+            selected: &selected,
+            initial: InitialState::NegativeSaturation,
+            weights: None,
+        }],
+        None,
+        &FitOptions {
+            total_mass_at_most: Some(-1.0),
+            ..FitOptions::default()
+        },
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("total_mass_at_most"), "{err}");
 }

@@ -24,7 +24,7 @@ use crate::plot_preisach::WeightMap;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
-use maglab_identify::actuator::{identify, IdentifyOptions};
+use maglab_identify::actuator::{identify, Identification, IdentifyOptions};
 use maglab_identify::dynamics::simulate::SimulationOptions;
 use maglab_identify::dynamics::{
     fit_eddy_and_damping, record, CurrentBetweenSamples, DynamicFit, DynamicOptions, Start,
@@ -79,12 +79,15 @@ pub struct Args {
     /// Use every n-th sample in the regression (the memory still sees every sample).
     #[arg(long, default_value_t = 1)]
     row_stride: usize,
-    /// The reversible magnetization: `none` (the paper's M = Γ[H]) or `piecewise` (M = Γ[H] +
+    /// The reversible magnetization: `none` (the paper's M = Γ[H]), `piecewise` (M = Γ[H] +
     /// R(H), a monotone piecewise-linear anhysteretic part with a susceptibility per grid
-    /// interval, fitted with the masses and written as `preisach.reversible_susceptibility`).
-    /// `none` by default: a reversible part the nominal model lacks is then left for `maglab
-    /// diagnose` to name.
-    #[arg(long, default_value = "none")]
+    /// interval, fitted with the masses and written as `preisach.reversible_susceptibility`) or
+    /// `auto`: `piecewise` only when the paper's model, its masses summing to at most M_s, misses
+    /// a quasi-static record by more than the quality limit (2 % NRMSE) and the reversible part
+    /// brings every record within it (the magnetization the sweep shows exceeds what Γ can
+    /// give); said in the output and in `provenance.reversible_part`, which `maglab diagnose`
+    /// reports as an effect the paper's model lacks.
+    #[arg(long, default_value = "auto")]
     reversible: String,
     /// Directory for the plots.
     #[arg(long, default_value = "out")]
@@ -155,12 +158,13 @@ pub fn run(args: &Args) -> Result<()> {
             smoothness: args.smoothness,
             ridge: args.ridge,
             reversible: match args.reversible.as_str() {
-                "none" => maglab_identify::fit::Reversible::None,
+                "none" | "auto" => maglab_identify::fit::Reversible::None,
                 "piecewise" => maglab_identify::fit::Reversible::PiecewiseNoOffset,
-                other => bail!("--reversible `{other}`: expected `none` or `piecewise`"),
+                other => bail!("--reversible `{other}`: expected `none`, `piecewise` or `auto`"),
             },
             unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
             row_stride: args.row_stride,
+            total_mass_at_most: None,
         },
         lag_correction: Some([
             base.actuator.eddy_resistance_ohm,
@@ -194,12 +198,31 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     let dataset = split.quasi_static_dataset();
+    let mut options = options;
     let mut id = identify(&dataset, &base, &base_name, &options)?;
+    let mut reversible_choice: Option<serde_json::Value> = None;
+    let mut chosen_first_pass: Option<DynamicFit> = None;
+    if args.reversible == "auto" {
+        let choice;
+        (choice, id, options, chosen_first_pass) = choose_reversible(
+            args,
+            &split,
+            documented.as_ref(),
+            (&base, &base_name),
+            &options,
+            id,
+        )?;
+        println!("reversible part (--reversible auto): {}", choice["reason"]);
+        reversible_choice = Some(choice);
+    }
     // The lag corrections of the quasi-static records need R_eddy, ξ, f0: with dynamic records,
     // identify them, then the masses again with them, then the dynamics on those masses.
     let mut first_pass: Option<DynamicFit> = None;
     if !split.dynamic.is_empty() && !args.no_waveform_fit {
-        let fit = identify_dynamics(args, &split, &id.params, documented.as_ref())?;
+        let fit = match chosen_first_pass {
+            Some(fit) => fit,
+            None => identify_dynamics(args, &split, &id.params, documented.as_ref())?,
+        };
         let best = fit.best();
         println!(
             "second pass: the masses with the lags of R_eddy = {:.2} Ω, ξ = {:.4}, f0 = {:.1} Hz",
@@ -310,6 +333,12 @@ pub fn run(args: &Args) -> Result<()> {
         .and_then(|fit| fit.refined.as_ref())
         .and_then(|r| r.details.get("fitted_up_to_hz"))
         .and_then(serde_json::Value::as_f64);
+    if let Some(choice) = reversible_choice {
+        id.params
+            .provenance
+            .details
+            .insert(REVERSIBLE_PART.into(), choice);
+    }
     let warnings = quality::warnings(
         &id.files,
         id.fit.weights.iter().sum(),
@@ -729,4 +758,155 @@ fn dynamic_loops(fit: &DynamicFit, split: &SplitDataset) -> Figure {
 
 fn pct(v: Option<f64>) -> String {
     v.map_or("n/a".into(), |v| format!("{:.3} %", 100.0 * v))
+}
+
+/// Key of `--reversible auto`'s decision in the identified file's provenance.
+pub const REVERSIBLE_PART: &str = "reversible_part";
+
+/// The worst quasi-static record's displacement NRMSE (0 without any).
+fn worst_quasi_static_nrmse(id: &Identification) -> f64 {
+    id.files
+        .iter()
+        .filter_map(|f| f.nrmse_displacement)
+        .fold(0.0, f64::max)
+}
+
+/// How far past `M_s` the paper's model's masses may sum before `--reversible auto` tries a
+/// reversible part (identifications without one: 0.9999-1.0002 × M_s on the bench plant).
+const MASS_SUM_PAST_SATURATION: f64 = 1.02;
+
+/// The mean NRMSE of the final dynamic fit over the sines at the lowest frequency (within
+/// 10 %): the ones a static part of the model shows in most and unmodelled dynamics least.
+fn lowest_frequency_nrmse(fit: &DynamicFit) -> Option<f64> {
+    let lowest = fit
+        .experiments
+        .iter()
+        .map(|e| e.frequency_hz)
+        .fold(f64::INFINITY, f64::min);
+    let values: Vec<f64> = fit
+        .experiments
+        .iter()
+        .filter(|e| e.frequency_hz <= 1.1 * lowest)
+        .filter_map(|e| e.nrmse_refined)
+        .collect();
+    (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+}
+
+/// `--reversible auto`. The paper's model (`without`, already identified) unless
+///
+/// 1. its masses sum past `M_s` ([`MASS_SUM_PAST_SATURATION`]): the records show more
+///    magnetization than `Γ` saturates at;
+/// 2. the masses capped at `M_s` with a piecewise reversible part describe every quasi-static
+///    record within [`quality::QUASI_STATIC_NRMSE_LIMIT`];
+/// 3. with dynamic records, R_eddy, ξ, f0 identified on either model, the reversible one
+///    predicts the lowest-frequency sines no worse ([`lowest_frequency_nrmse`]). A sensor
+///    whose gain depends on position also lifts the sweep past the stroke, and a reversible
+///    part fits that sweep as well, but it is a change of `M`, not of the reading: it changes
+///    the rod's dynamics, and the sines the sweep's static part should predict come out worse.
+///
+/// Returns the decision (for the provenance), the identification and options to go on with and,
+/// when step 3 ran, the chosen model's first-pass dynamic fit.
+fn choose_reversible(
+    args: &Args,
+    split: &SplitDataset,
+    documented: Option<&maglab_identify::dataset_info::DatasetInfo>,
+    (base, base_name): (&actuator_params::ActuatorParams, &str),
+    options: &IdentifyOptions,
+    without: Identification,
+) -> Result<(
+    serde_json::Value,
+    Identification,
+    IdentifyOptions,
+    Option<DynamicFit>,
+)> {
+    let limit = quality::QUASI_STATIC_NRMSE_LIMIT;
+    let ms = base.actuator.saturation_magnetization_a_per_m;
+    let mass_ratio = without.fit.weights.iter().sum::<f64>() / ms;
+    let none_choice = |reason: String, details: serde_json::Value| {
+        let mut choice = serde_json::json!({"chosen": "none", "reason": reason,
+            "mass_sum_over_saturation_without": mass_ratio});
+        if let (Some(c), Some(d)) = (choice.as_object_mut(), details.as_object()) {
+            c.extend(d.clone());
+        }
+        choice
+    };
+    if mass_ratio <= MASS_SUM_PAST_SATURATION {
+        let choice = none_choice(
+            format!(
+                "none: the masses of the paper's model sum to {mass_ratio:.4} x M_s (<= {MASS_SUM_PAST_SATURATION})"
+            ),
+            serde_json::json!({}),
+        );
+        return Ok((choice, without, options.clone(), None));
+    }
+    let with_options = IdentifyOptions {
+        fit: FitOptions {
+            reversible: maglab_identify::fit::Reversible::PiecewiseNoOffset,
+            ..options.fit
+        },
+        ..options.clone()
+    };
+    let dataset = split.quasi_static_dataset();
+    let with = identify(&dataset, base, base_name, &with_options)?;
+    let sweep_with = worst_quasi_static_nrmse(&with);
+    let sweep = serde_json::json!({"worst_quasi_static_nrmse_with": sweep_with});
+    let past = format!("the masses of the paper's model sum to {mass_ratio:.4} x M_s");
+    if sweep_with > limit {
+        let choice = none_choice(
+            format!(
+                "none: {past}, but with a reversible part the quasi-static records are missed by \
+                 {:.2} % NRMSE (> {:.0} %)",
+                100.0 * sweep_with,
+                100.0 * limit
+            ),
+            sweep,
+        );
+        return Ok((choice, without, options.clone(), None));
+    }
+    if split.dynamic.is_empty() || args.no_waveform_fit {
+        let reason = format!(
+            "piecewise: {past}; with a reversible part the masses sum to at most M_s and the \
+             quasi-static records are met within {:.2} % NRMSE (no sines to check it on)",
+            100.0 * sweep_with
+        );
+        let choice = serde_json::json!({"chosen": "piecewise", "reason": reason,
+            "mass_sum_over_saturation_without": mass_ratio, "worst_quasi_static_nrmse_with": sweep_with});
+        return Ok((choice, with, with_options, None));
+    }
+    let fit_without = identify_dynamics(args, split, &without.params, documented)?;
+    let fit_with = identify_dynamics(args, split, &with.params, documented)?;
+    let (low_without, low_with) = (
+        lowest_frequency_nrmse(&fit_without).unwrap_or(f64::INFINITY),
+        lowest_frequency_nrmse(&fit_with).unwrap_or(f64::INFINITY),
+    );
+    let details = serde_json::json!({
+        "mass_sum_over_saturation_without": mass_ratio,
+        "worst_quasi_static_nrmse_with": sweep_with,
+        "lowest_frequency_sine_nrmse_without": low_without,
+        "lowest_frequency_sine_nrmse_with": low_with,
+    });
+    let sines = format!(
+        "the lowest-frequency sines are predicted within {:.2} % NRMSE with a reversible part, \
+         {:.2} % without",
+        100.0 * low_with,
+        100.0 * low_without
+    );
+    if low_with <= low_without {
+        let reason = format!(
+            "piecewise: {past}; with a reversible part they sum to at most M_s, the quasi-static \
+             records are met within {:.2} % NRMSE and {sines}",
+            100.0 * sweep_with
+        );
+        let mut choice = serde_json::json!({"chosen": "piecewise", "reason": reason});
+        if let (Some(c), Some(d)) = (choice.as_object_mut(), details.as_object()) {
+            c.extend(d.clone());
+        }
+        Ok((choice, with, with_options, Some(fit_with)))
+    } else {
+        let choice = none_choice(
+            format!("none: {past}, but {sines}: the excess is not a change of M"),
+            details,
+        );
+        Ok((choice, without, options.clone(), Some(fit_without)))
+    }
 }

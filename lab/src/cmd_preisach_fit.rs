@@ -184,6 +184,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         reversible,
         unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
         row_stride: args.row_stride,
+        total_mass_at_most: None,
     };
     let initial = if args.initial == "auto" {
         let (chosen, why) = auto_initial(&table);
