@@ -7,16 +7,17 @@
 //!
 //! `IDENTIFIED_DIR` keeps the outputs. `IDENTIFIED_SEED` (default 1) and `IDENTIFIED_CASES` (the
 //! first N cases; 32 is the whole suite) choose the run; without `IDENTIFIED_CASES`, four cases of
-//! the seed chosen for what they exercise (a CI budget: see the test). It asserts ≥ 90 % correct.
+//! the seed chosen for what they exercise (about two minutes: see the test). It asserts ≥ 90 % correct.
 //!
-//! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on all 32 cases of seed 1
-//! (`IDENTIFIED_CASES=32`): 20/32 correct (seed 2: 16/32). Every noise-only case (4/4, `none`) and
-//! every out-of-library case (8/8, `unexplained`) is right; 8 of the 20 library-effect cases are
-//! (seed 2: 4). The identification absorbs the effect into R_eddy, ξ, f0 (f0 196–264 Hz for the
-//! 392 Hz rod with a lag in the data; a load or eddy-current paths sometimes so fully that the
-//! held-out top frequencies fit within the noise), the reversible part into the identified
-//! masses, and with creep, stick-slip or thermal drift in the reversal sweep the masses are wrong
-//! (the file says so: `provenance.warnings`, `maglab_identify::quality`). Run it with
+//! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on all 32 cases
+//! (`IDENTIFIED_CASES=32`): 23/32 correct on seed 1, 20/32 on seed 2. Every noise-only case
+//! (`none`) and every out-of-library case (`unexplained`) is right; 11 and 8 of the 20
+//! library-effect cases are. The identification absorbs a lag into R_eddy, ξ, f0 (f0 196–264 Hz
+//! for the 392 Hz rod), and a load, ΔE or eddy-current paths sometimes so fully that the
+//! held-out top frequencies fit within the noise; with creep, stick-slip or thermal drift in the
+//! reversal sweep the masses are wrong (the file says so: `provenance.warnings`,
+//! `maglab_identify::quality`). A reversible magnetization is kept in the file by `maglab
+//! identify --reversible auto` and named by the diagnosis. Run it with
 //! `IDENTIFIED_CASES=32 cargo test --release -p maglab --test identified_suite -- --ignored --nocapture`.
 use maglab_plant::bench::{forc_experiment, record_all, write_dataset};
 use maglab_plant::suite;
@@ -142,11 +143,11 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
 }
 
 #[test]
-#[ignore = "fails today (20/32 on seed 1, 16/32 on seed 2: library effects are absorbed into the identified file); issue 9"]
+#[ignore = "fails today (23/32 on seed 1, 20/32 on seed 2: lags and loads are absorbed into the identified constants); issue 9"]
 fn identified_then_diagnosed_suite_names_the_right_effect() {
     let seed: u64 =
         std::env::var("IDENTIFIED_SEED").map_or(1, |s| s.parse().expect("IDENTIFIED_SEED"));
-    // Without IDENTIFIED_CASES, a CI budget of four cases of seed 1 that exercise the
+    // Without IDENTIFIED_CASES, four cases of seed 1 (a short run) that exercise the
     // identification's choices: a ΔE (0), noise only (4), a reversible magnetization that
     // `--reversible auto` must keep (12) and a sensor gain nonlinearity whose sweep a
     // reversible part also fits and which it must not keep (20).
