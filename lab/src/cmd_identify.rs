@@ -81,12 +81,13 @@ pub struct Args {
     row_stride: usize,
     /// The reversible magnetization: `none` (the paper's M = Γ[H]), `piecewise` (M = Γ[H] +
     /// R(H), a monotone piecewise-linear anhysteretic part with a susceptibility per grid
-    /// interval, fitted with the masses and written as `preisach.reversible_susceptibility`) or
-    /// `auto`: `piecewise` only when the paper's model, its masses summing to at most M_s, misses
-    /// a quasi-static record by more than the quality limit (2 % NRMSE) and the reversible part
-    /// brings every record within it (the magnetization the sweep shows exceeds what Γ can
-    /// give); said in the output and in `provenance.reversible_part`, which `maglab diagnose`
-    /// reports as an effect the paper's model lacks.
+    /// interval, fitted with the masses, which then sum to at most M_s, and written as
+    /// `preisach.reversible_susceptibility`) or `auto`: `piecewise` only when the paper's masses
+    /// sum past 1.02 x M_s (the sweep shows more magnetization than Γ gives) and the reversible
+    /// part both meets every quasi-static record within the quality limit (2 % NRMSE) and
+    /// predicts the lowest-frequency sines no worse; said in the output and in
+    /// `provenance.reversible_part`. `maglab diagnose` names a kept part as an effect the
+    /// paper's model lacks.
     #[arg(long, default_value = "auto")]
     reversible: String,
     /// Directory for the plots.
