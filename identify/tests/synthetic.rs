@@ -39,6 +39,24 @@ fn held_out(seed: u64, h_min: f64, h_max: f64) -> Vec<f64> {
     h
 }
 
+/// The field `c0 I` of `maglab excite`'s FORC sweep over the paper file's grid (1 Hz sweep).
+fn forc_field(p: &actuator_params::ActuatorParams, sample_rate_hz: f64) -> Vec<f64> {
+    let excitation = forc_excitation(&ExciteOptions {
+        h_min_a_per_m: p.preisach.h_min_a_per_m,
+        h_max_a_per_m: p.preisach.h_max_a_per_m,
+        coil_factor_per_m: p.actuator.coil_factor_per_m,
+        sweep_rate_hz: 1.0,
+        sample_rate_hz,
+        overdrive: 0.01,
+    })
+    .unwrap();
+    excitation
+        .current_a
+        .iter()
+        .map(|i| i * p.actuator.coil_factor_per_m)
+        .collect()
+}
+
 #[test]
 fn identified_masses_predict_held_out_inputs_within_one_percent() {
     let p = actuator_params::paper_defaults();
@@ -53,20 +71,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
         100.0 * reference.discretization_bound_a_per_m() / range
     );
     // Training data: the FORC excitation, output with Gaussian sensor noise of 0.2 % of the range.
-    let excitation = forc_excitation(&ExciteOptions {
-        h_min_a_per_m: h_min,
-        h_max_a_per_m: h_max,
-        coil_factor_per_m: p.actuator.coil_factor_per_m,
-        sweep_rate_hz: 1.0,
-        sample_rate_hz: 1000.0,
-        overdrive: 0.01,
-    })
-    .unwrap();
-    let h: Vec<f64> = excitation
-        .current_a
-        .iter()
-        .map(|i| i * p.actuator.coil_factor_per_m)
-        .collect();
+    let h = forc_field(&p, 1000.0);
     let mut state = reference.negative_saturation();
     let noise = Normal::new(0.0, 0.002 * range).unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(42);
@@ -157,20 +162,7 @@ fn the_mass_bound_keeps_the_masses_at_saturation() {
     let reference =
         RelayPreisach::new(&p.preisach.weights_a_per_m, h_min, h_max, SUBDIVISION).unwrap();
     let saturation = reference.saturation_a_per_m();
-    let excitation = forc_excitation(&ExciteOptions {
-        h_min_a_per_m: h_min,
-        h_max_a_per_m: h_max,
-        coil_factor_per_m: p.actuator.coil_factor_per_m,
-        sweep_rate_hz: 1.0,
-        sample_rate_hz: 500.0,
-        overdrive: 0.01,
-    })
-    .unwrap();
-    let h: Vec<f64> = excitation
-        .current_a
-        .iter()
-        .map(|i| i * p.actuator.coil_factor_per_m)
-        .collect();
+    let h = forc_field(&p, 500.0);
     let mut state = reference.negative_saturation();
     let m: Vec<f64> = h
         .iter()
@@ -178,8 +170,8 @@ fn the_mass_bound_keeps_the_masses_at_saturation() {
         .collect();
     let selected = vec![true; h.len()];
     let grid = Grid::uniform(h_min, h_max);
-    let sum_with = |cap: Option<f64>| {
-        let result = fit(
+    let fit_with = |cap: Option<f64>| {
+        fit(
             &grid,
             &[Experiment {
                 label: "forc",
@@ -195,7 +187,9 @@ fn the_mass_bound_keeps_the_masses_at_saturation() {
                 ..FitOptions::default()
             },
         )
-        .unwrap();
+    };
+    let sum_with = |cap: Option<f64>| {
+        let result = fit_with(cap).unwrap();
         (result.weights.iter().sum::<f64>(), result.rms_residual)
     };
     let (free, free_rms) = sum_with(None);
@@ -211,22 +205,6 @@ fn the_mass_bound_keeps_the_masses_at_saturation() {
     assert!(bounded >= 0.95 * saturation);
     assert!(bounded_rms > 10.0 * free_rms);
     // A bound that is not a positive number is an error naming the option.
-    let err = fit(
-        &grid,
-        &[Experiment {
-            label: "forc",
-            input: &h,
-            output: &m,
-            selected: &selected,
-            initial: InitialState::NegativeSaturation,
-            weights: None,
-        }],
-        None,
-        &FitOptions {
-            total_mass_at_most: Some(-1.0),
-            ..FitOptions::default()
-        },
-    )
-    .unwrap_err();
+    let err = fit_with(Some(-1.0)).unwrap_err();
     assert!(err.to_string().contains("total_mass_at_most"), "{err}");
 }

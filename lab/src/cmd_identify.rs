@@ -823,20 +823,22 @@ fn choose_reversible(
     let limit = quality::QUASI_STATIC_NRMSE_LIMIT;
     let ms = base.actuator.saturation_magnetization_a_per_m;
     let mass_ratio = without.fit.weights.iter().sum::<f64>() / ms;
-    let none_choice = |reason: String, details: serde_json::Value| {
-        let mut choice = serde_json::json!({"chosen": "none", "reason": reason,
+    // The decision as the provenance records it: the choice, why, and the figures it rests on.
+    let decision = |chosen: &str, reason: String, figures: &[(&str, f64)]| {
+        let mut d = serde_json::json!({"chosen": chosen, "reason": reason,
             "mass_sum_over_saturation_without": mass_ratio});
-        if let (Some(c), Some(d)) = (choice.as_object_mut(), details.as_object()) {
-            c.extend(d.clone());
+        for &(key, value) in figures {
+            d[key] = serde_json::json!(value);
         }
-        choice
+        d
     };
     if mass_ratio <= MASS_SUM_PAST_SATURATION {
-        let choice = none_choice(
+        let choice = decision(
+            "none",
             format!(
                 "none: the masses of the paper's model sum to {mass_ratio:.4} x M_s (<= {MASS_SUM_PAST_SATURATION})"
             ),
-            serde_json::json!({}),
+            &[],
         );
         return Ok((choice, without, options.clone(), None));
     }
@@ -850,17 +852,18 @@ fn choose_reversible(
     let dataset = split.quasi_static_dataset();
     let with = identify(&dataset, base, base_name, &with_options)?;
     let sweep_with = worst_quasi_static_nrmse(&with);
-    let sweep = serde_json::json!({"worst_quasi_static_nrmse_with": sweep_with});
+    let sweep = [("worst_quasi_static_nrmse_with", sweep_with)];
     let past = format!("the masses of the paper's model sum to {mass_ratio:.4} x M_s");
     if sweep_with > limit {
-        let choice = none_choice(
+        let choice = decision(
+            "none",
             format!(
                 "none: {past}, but with a reversible part the quasi-static records are missed by \
                  {:.2} % NRMSE (> {:.0} %)",
                 100.0 * sweep_with,
                 100.0 * limit
             ),
-            sweep,
+            &sweep,
         );
         return Ok((choice, without, options.clone(), None));
     }
@@ -870,9 +873,12 @@ fn choose_reversible(
              quasi-static records are met within {:.2} % NRMSE (no sines to check it on)",
             100.0 * sweep_with
         );
-        let choice = serde_json::json!({"chosen": "piecewise", "reason": reason,
-            "mass_sum_over_saturation_without": mass_ratio, "worst_quasi_static_nrmse_with": sweep_with});
-        return Ok((choice, with, with_options, None));
+        return Ok((
+            decision("piecewise", reason, &sweep),
+            with,
+            with_options,
+            None,
+        ));
     }
     let fit_without = identify_dynamics(args, split, &without.params, documented)?;
     let fit_with = identify_dynamics(args, split, &with.params, documented)?;
@@ -880,12 +886,11 @@ fn choose_reversible(
         lowest_frequency_nrmse(&fit_without).unwrap_or(f64::INFINITY),
         lowest_frequency_nrmse(&fit_with).unwrap_or(f64::INFINITY),
     );
-    let details = serde_json::json!({
-        "mass_sum_over_saturation_without": mass_ratio,
-        "worst_quasi_static_nrmse_with": sweep_with,
-        "lowest_frequency_sine_nrmse_without": low_without,
-        "lowest_frequency_sine_nrmse_with": low_with,
-    });
+    let figures = [
+        sweep[0],
+        ("lowest_frequency_sine_nrmse_without", low_without),
+        ("lowest_frequency_sine_nrmse_with", low_with),
+    ];
     let sines = format!(
         "the lowest-frequency sines are predicted within {:.2} % NRMSE with a reversible part, \
          {:.2} % without",
@@ -898,15 +903,17 @@ fn choose_reversible(
              records are met within {:.2} % NRMSE and {sines}",
             100.0 * sweep_with
         );
-        let mut choice = serde_json::json!({"chosen": "piecewise", "reason": reason});
-        if let (Some(c), Some(d)) = (choice.as_object_mut(), details.as_object()) {
-            c.extend(d.clone());
-        }
-        Ok((choice, with, with_options, Some(fit_with)))
+        Ok((
+            decision("piecewise", reason, &figures),
+            with,
+            with_options,
+            Some(fit_with),
+        ))
     } else {
-        let choice = none_choice(
+        let choice = decision(
+            "none",
             format!("none: {past}, but {sines}: the excess is not a change of M"),
-            details,
+            &figures,
         );
         Ok((choice, without, options.clone(), Some(fit_without)))
     }
