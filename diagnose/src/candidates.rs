@@ -440,13 +440,22 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
             },
         ],
         EffectName::MechanicalLoad => vec![
+            // Both ends are physical limits. At the low end the load no longer loads the rod:
+            // a mass of 2 % of the rod's on a spring and a damper, the sensor reading it, is a
+            // second-order low-pass on the reading — the sensor's mount, the form of
+            // `sensor_dynamics` — and a load fit that runs there is a sensor lag in disguise.
+            // Seen with identified files (f0 free x/ 2): in identify -> diagnose seeds 1-3, a
+            // sensor lag was named a load fitted at 0.02 three times. With the low end pinned,
+            // seed 1 case 23 (sensor + reversible) is named right; in the other two the load
+            // refits at a heavier mass (0.09) and still wins; no verdict lost (96 cases; blind
+            // suite with the true file, seeds 1 and 14: the same 30/32 and 28/32).
             ParamSpec {
                 name: "mass_ratio",
                 lo: 0.02,
                 hi: 10.0,
                 log: true,
                 stage: B,
-                edge: Edge::High,
+                edge: Edge::Both,
             },
             ParamSpec {
                 name: "coupling_hz",
@@ -698,6 +707,22 @@ mod tests {
             edge: Edge::None,
         };
         assert!((l.value(l.coordinate(0.3)) - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_load_at_the_lightest_mass_is_pinned() {
+        // A load of 2 % of the rod's mass does not load the rod: it is a filter on the
+        // reading (the sensor's form), so the load candidate pinned there is no explanation.
+        let n = Nominal::from_params(&actuator_params::paper_defaults());
+        let specs = effect_parameters(EffectName::MechanicalLoad, &n);
+        let mass = specs
+            .iter()
+            .find(|s| s.name == "mass_ratio")
+            .expect("mass_ratio");
+        assert!(mass.pinned(mass.coordinate(0.02)));
+        assert!(mass.pinned(mass.coordinate(10.0)));
+        assert!(!mass.pinned(mass.coordinate(0.05)));
+        assert!(!mass.pinned(mass.coordinate(0.3)));
     }
 
     #[test]
