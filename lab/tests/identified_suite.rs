@@ -5,6 +5,10 @@
 //! then diagnosed with `maglab diagnose --params identified.json`. The cases whose start states
 //! the suite leaves undocumented document only the sweep's.
 //!
+//! `maglab identify` gets no `--params`: its base file is the paper defaults, the plant's own
+//! R_eddy, ξ, f0 and masses, so every identification here starts at the truth (the figures below
+//! are optimistic on that account; `identify_then_diagnose` starts from a datasheet's constants).
+//!
 //! `IDENTIFIED_DIR` keeps the outputs. `IDENTIFIED_SEED` (default 1) and `IDENTIFIED_CASES` (the
 //! first N cases; 32 is the whole suite) choose the run; without `IDENTIFIED_CASES`, four cases of
 //! the seed chosen for what they exercise (about two minutes: see the test). It asserts ≥ 90 % correct.
