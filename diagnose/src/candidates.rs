@@ -443,13 +443,8 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
             // Both ends are physical limits. At the low end the load no longer loads the rod:
             // a mass of 2 % of the rod's on a spring and a damper, the sensor reading it, is a
             // second-order low-pass on the reading — the sensor's mount, the form of
-            // `sensor_dynamics` — and a load fit that runs there is a sensor lag in disguise.
-            // Seen with identified files (f0 free x/ 2): in identify -> diagnose seeds 1-3, a
-            // sensor lag was named a load fitted at 0.02 three times. With the low end pinned,
-            // seed 1 case 23 (sensor + reversible) is named right; in the other two the load
-            // refits at 0.09 and at 0.022 (just outside the pinned 1 % of the range) and still
-            // wins; no verdict lost (96 cases; blind suite with the true file, seeds 1 and 14:
-            // the same 30/32 and 28/32).
+            // `sensor_dynamics` — and a load fit that runs there is a sensor lag in disguise
+            // (seen with identified files, f0 free x/ 2; README, identify -> diagnose, b390fa3).
             ParamSpec {
                 name: "mass_ratio",
                 lo: 0.02,

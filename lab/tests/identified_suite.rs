@@ -16,8 +16,9 @@
 //! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on all 32 cases
 //! (`IDENTIFIED_CASES=32`): 24/32 correct on seed 1 (b390fa3), 20/32 on seeds 2 and 3, 22/32
 //! on seed 4 (fresh). Every noise-only case (`none`) and every out-of-library case
-//! (`unexplained`) is right; 12, 8, 8 and 10 of the 20 library-effect cases are. The identification absorbs a lag into R_eddy, ξ, f0 (f0 196–264 Hz
-//! for the 392 Hz rod), and a load, ΔE or eddy-current paths sometimes so fully that the
+//! (`unexplained`) is right; 12, 8, 8 and 10 of the 20 library-effect cases are. The
+//! identification absorbs a lag into R_eddy, ξ, f0 (f0 196–264 Hz for the 392 Hz rod), and a
+//! load, ΔE or eddy-current paths sometimes so fully that the
 //! held-out top frequencies fit within the noise; with creep, stick-slip or thermal drift in the
 //! reversal sweep the masses are wrong (the file says so: `provenance.warnings`,
 //! `maglab_identify::quality`). A reversible magnetization is kept in the file by `maglab

@@ -87,9 +87,7 @@ fn identify_then_diagnose(rig_args: &[&str]) {
     .map(|a| a.to_string())
     .collect();
     maglab(&rig.iter().map(String::as_str).collect::<Vec<_>>());
-    // The base file is a datasheet's, not this rod's: R_eddy, xi, f0 off by x1.4, x0.75, x1.2
-    // (the masses, the prior of the fit, are the plant's). Started from the plant's own
-    // constants, the identification would be checked only near its answer.
+    // The datasheet's base file (module docs); its masses, the fit's prior, are the plant's.
     let datasheet = dir.path().join("datasheet.json");
     let mut base = actuator_params::paper_defaults();
     base.actuator.eddy_resistance_ohm *= 1.4;
