@@ -225,12 +225,21 @@ pub struct ElectroRun {
     pub end_memory: Box<Memory>,
 }
 
-/// The reversible term and its slope.
+/// The reversible term `χ H q^(−1/p)` with `q = 1 + |H/H_s|^p`, and its slope `χ q^(−1/p − 1)`.
+///
+/// Evaluated once per substep, so written with two `exp` and two logarithms instead of three
+/// `powf`, which were 12 % of the blind suite's time (`perf` on `blind_suite 1 12`); the slope
+/// reuses `q^(−1/p)`. Within 1e-13 (relative) of the `powf` form (test
+/// `reversible_term_matches_the_powf_form`).
 fn reversible(rev: Option<(f64, f64, f64)>, h: f64) -> (f64, f64) {
     match rev {
         Some((chi, hs, p)) if chi > 0.0 => {
-            let q = 1.0 + (h / hs).abs().powf(p);
-            (chi * h * q.powf(-1.0 / p), chi * q.powf(-1.0 / p - 1.0))
+            let x = (h / hs).abs();
+            // |H/H_s|^p = exp(p ln|H/H_s|); 0^p = 0 for the p > 0 of the candidate's range.
+            let a = if x > 0.0 { (p * x.ln()).exp() } else { 0.0 };
+            let q = 1.0 + a;
+            let damped = (-a.ln_1p() / p).exp();
+            (chi * h * damped, chi * damped / q)
         }
         _ => (0.0, 0.0),
     }
@@ -838,6 +847,29 @@ mod tests {
         let params = actuator_params::paper_defaults();
         let core = magctl::params::ActuatorParameters::from_file(&params, "defaults").unwrap();
         (Nominal::from_params(&params), core.preisach.measure())
+    }
+
+    /// The `exp`/`ln` form of the reversible term against the textbook `powf` form, over the
+    /// candidate's ranges of shape and saturation field and fields from 0 to 10 H_s.
+    #[test]
+    fn reversible_term_matches_the_powf_form() {
+        let (chi, hs) = (0.3, 20_000.0);
+        let mut worst = 0.0f64;
+        for p in [0.5, 1.0, 2.0, 3.7, 8.0] {
+            for k in 0..=400 {
+                let h = (k as f64 - 200.0) / 20.0 * hs;
+                let q: f64 = 1.0 + (h / hs).abs().powf(p);
+                let term = chi * h * q.powf(-1.0 / p);
+                let slope = chi * q.powf(-1.0 / p - 1.0);
+                let (t, s) = reversible(Some((chi, hs, p)), h);
+                worst = worst
+                    .max((t - term).abs() / (chi * hs))
+                    .max((s - slope).abs() / chi);
+            }
+        }
+        assert!(worst < 1e-13, "largest relative difference {worst:.2e}");
+        assert_eq!(reversible(Some((chi, hs, 2.0)), 0.0), (0.0, chi));
+        assert_eq!(reversible(None, 1e4), (0.0, 0.0));
     }
 
     /// The largest absolute difference between two runs.
