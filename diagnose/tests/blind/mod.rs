@@ -76,7 +76,12 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
     let kinds = suite::kinds(seed, count);
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // `BLIND_THREADS` (default: the cores this process may use) cases at a time; `cargo xtask
+    // test` sets it when it starts the suite confined to one core that it widens later.
+    let threads = std::env::var("BLIND_THREADS").map_or_else(
+        |_| std::thread::available_parallelism().map_or(1, |n| n.get()),
+        |s| s.parse().expect("BLIND_THREADS: a whole number"),
+    );
     std::thread::scope(|scope| {
         for _ in 0..threads {
             scope.spawn(|| loop {
