@@ -7,8 +7,8 @@
 //! `N passed, M failed` (plus `, K skipped` after a failure), which CI reads.
 //!
 //! One check runs beside the others: the diagnosis's blind suite is started by `test` (in the
-//! idle scheduling class, on one core) and awaited by the last step, `blind_suite`, on every core
-//! ([`test_workspace`]); a failure before then stops it.
+//! idle scheduling class; confined to one core during the QEMU lock-step steps) and awaited by
+//! the last step, `blind_suite` ([`test_workspace`]); a failure before then stops it.
 
 use crate::setup::{self, FIRMWARE_TARGET};
 use crate::util::{display, run_checked, secs, Ctx};
@@ -155,12 +155,16 @@ pub fn steps() -> Vec<Step> {
         Step {
             name: "hil",
             purpose: "virtual bench: firmware-hil under QEMU in lock-step with the default plant (1 s, tracking <= 1 %, <= 30 s wall) and a Python plant (also started late); conditioning vs random histories; measure -> identify -> re-bake -> track on a plant with other parameters (<= 1 %, >= 5x better than the defaults); NaN sample (feedback on: feedforward fallback; off: 0 A), silent link, corrupted frame (0 A) (exits 7/8)",
-            action: Action::Func(|ctx| crate::hil::check(ctx).map(|_| ())),
+            action: Action::Func(|ctx| {
+                with_background_confined(|| crate::hil::check(ctx).map(|_| ()))
+            }),
         },
         Step {
             name: "robustness",
             purpose: "closed loop vs open loop on every robustness case (host) and three as firmware under QEMU: RMS <= 1 % of p-p in every row but backlash, >= 5x below the open loop in every rod-side row",
-            action: Action::Func(|ctx| crate::robustness::check(ctx).map(|_| ())),
+            action: Action::Func(|ctx| {
+                with_background_confined(|| crate::robustness::check(ctx).map(|_| ()))
+            }),
         },
         Step {
             name: "nucleo",
@@ -228,28 +232,13 @@ fn test_workspace(ctx: &Ctx) -> Result<()> {
     std::fs::create_dir_all(log.parent().expect("out/"))?;
     let file =
         std::fs::File::create(&log).with_context(|| format!("cannot create {}", log.display()))?;
-    // In the idle scheduling class (`chrt --idle 0`) and confined to the last core (`taskset`,
-    // both util-linux) until `blind_suite` widens it: the steps after `test` are latency-bound
-    // (QEMU in lock-step with a plant over TCP, 121 723 round trips in `hil`'s measurement) and
-    // keep a core of their own. Measured beside the suite on both cores: `hil`'s default run
-    // 12.5 s under `nice -n19`, 7.5 s under `chrt --idle` (5 s alone), and once, in the idle
-    // class, the link lost the firmware's last two frames of the `garbage` fault run. Its
-    // threads are set from all cores (`BLIND_THREADS`, `RAYON_NUM_THREADS`), not from the
-    // confined start.
+    // In the idle scheduling class (`chrt --idle 0`, util-linux): the other steps take the cores
+    // first and the suite the cycles they leave. The lock-step steps confine it to one core
+    // besides ([`with_background_confined`]).
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let confine = if cores > 1 {
-        vec!["taskset".to_string(), "-c".into(), (cores - 1).to_string()]
-    } else {
-        Vec::new()
-    };
     let spawn = |launcher: &[&str]| -> Result<(Child, String)> {
-        let program: Vec<&str> = confine
-            .iter()
-            .map(String::as_str)
-            .chain(launcher.iter().copied())
-            .collect();
-        let mut cmd = Command::new(program[0]);
-        cmd.args(&program[1..])
+        let mut cmd = Command::new(launcher[0]);
+        cmd.args(&launcher[1..])
             .arg(&exe)
             .args(["--exact", BLIND_SUITE_TEST, "--nocapture"])
             .env("BLIND_THREADS", cores.to_string())
@@ -277,20 +266,6 @@ fn await_blind_suite(_ctx: &Ctx) -> Result<()> {
     let Some(mut bg) = BLIND_SUITE.lock().unwrap_or_else(|p| p.into_inner()).take() else {
         bail!("the blind suite was not started (the `test` step starts it)");
     };
-    // Every core for the rest of the suite (every thread of it: `-a`).
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    if cores > 1 && bg.child.try_wait()?.is_none() {
-        let all = format!("0-{}", cores - 1);
-        let pid = bg.child.id().to_string();
-        let mut widen = Command::new("taskset");
-        widen
-            .args(["-a", "-p", "-c", &all, &pid])
-            .stdout(Stdio::null());
-        // The suite may end between the check and the call; it is then past needing the cores.
-        if let Err(e) = run_checked(widen) {
-            println!("(not widened: {e:#})");
-        }
-    }
     let status = bg.child.wait().context("cannot wait for the blind suite")?;
     let log = std::fs::read_to_string(&bg.log)
         .with_context(|| format!("cannot read {}", bg.log.display()))?;
@@ -306,6 +281,36 @@ fn await_blind_suite(_ctx: &Ctx) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Runs `step` (a step with QEMU in lock-step with a plant over TCP: 121 723 round trips in
+/// `hil`'s measurement) with the background blind suite confined to the last core (`taskset`,
+/// util-linux), so that the latency-bound lock-step keeps a core of its own; every core again
+/// after it. Measured beside the suite on both cores: `hil`'s default run 12.5 s under `nice
+/// -n19`, 7.5 s in the idle class (5 s alone), and once, in the idle class, the link lost the
+/// firmware's last two frames of the `garbage` fault run. The suite's threads were counted
+/// from every core (`BLIND_THREADS`, `RAYON_NUM_THREADS`).
+fn with_background_confined(step: impl FnOnce() -> Result<()>) -> Result<()> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let set_cores = |list: String| {
+        let mut guard = BLIND_SUITE.lock().unwrap_or_else(|p| p.into_inner());
+        let Some(bg) = guard.as_mut() else { return };
+        if cores < 2 || !matches!(bg.child.try_wait(), Ok(None)) {
+            return;
+        }
+        let mut taskset = Command::new("taskset");
+        taskset
+            .args(["-a", "-p", "-c", &list, &bg.child.id().to_string()])
+            .stdout(Stdio::null());
+        // The suite may end between the check and the call; it then needs no cores.
+        if let Err(e) = run_checked(taskset) {
+            println!("(the blind suite's cores unchanged: {e:#})");
+        }
+    };
+    set_cores((cores - 1).to_string());
+    let result = step();
+    set_cores(format!("0-{}", cores.saturating_sub(1)));
+    result
 }
 
 /// Stops a background blind suite that no step will wait for (a step before `blind_suite`
