@@ -26,6 +26,7 @@
 //! `maglab_identify::quality`). A reversible magnetization is kept in the file by `maglab
 //! identify --reversible auto` and named by the diagnosis. Run it with
 //! `IDENTIFIED_CASES=32 cargo test --release -p maglab --test identified_suite -- --ignored --nocapture`.
+mod common;
 use maglab_plant::bench::{forc_experiment, record_all, write_dataset};
 use maglab_plant::suite;
 use std::path::Path;
@@ -96,15 +97,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
     let identified = dir.join("identified.json");
     // A datasheet's base file, not the plant's own constants (module docs).
     let datasheet = dir.join("datasheet.json");
-    let mut base = actuator_params::paper_defaults();
-    base.actuator.eddy_resistance_ohm *= 1.4;
-    base.actuator.damping_ratio *= 0.75;
-    base.actuator.resonance_hz *= 1.2;
-    std::fs::write(
-        &datasheet,
-        serde_json::to_string_pretty(&base).expect("JSON"),
-    )
-    .expect("datasheet written");
+    common::write_datasheet(&datasheet);
     let started = std::time::Instant::now();
     let log = maglab(&[
         "identify",

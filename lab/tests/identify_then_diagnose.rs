@@ -15,6 +15,7 @@
 //! Acceptance: R_eddy, ξ, f0 within 3 % of the plant's, Σ masses within 2 % of M_s, verdict
 //! `none` (with the constants refitted in the wide range of identified constants), and the
 //! report's "where" has one frequency band per sine frequency, none for the reversal sweep.
+mod common;
 use std::path::Path;
 use std::process::Command;
 
@@ -87,17 +88,9 @@ fn identify_then_diagnose(rig_args: &[&str]) {
     .map(|a| a.to_string())
     .collect();
     maglab(&rig.iter().map(String::as_str).collect::<Vec<_>>());
-    // The datasheet's base file (module docs); its masses, the fit's prior, are the plant's.
+    // The datasheet's base file (module docs).
     let datasheet = dir.path().join("datasheet.json");
-    let mut base = actuator_params::paper_defaults();
-    base.actuator.eddy_resistance_ohm *= 1.4;
-    base.actuator.damping_ratio *= 0.75;
-    base.actuator.resonance_hz *= 1.2;
-    std::fs::write(
-        &datasheet,
-        serde_json::to_string_pretty(&base).expect("JSON"),
-    )
-    .expect("datasheet written");
+    common::write_datasheet(&datasheet);
     let started = std::time::Instant::now();
     let log = maglab(&[
         "identify",

@@ -1,0 +1,15 @@
+//! Shared by the identify → diagnose tests: the base file a user starts `maglab identify` from.
+
+use std::path::Path;
+
+/// Writes a datasheet's base file to `path`: the paper defaults with R_eddy, ξ, f0 off by ×1.4,
+/// ×0.75, ×1.2 (a datasheet's values, not this rod's), so that the identification does not start
+/// at the bench plant's own constants. Its masses, the fit's prior, are the plant's.
+pub fn write_datasheet(path: &Path) {
+    let mut base = actuator_params::paper_defaults();
+    base.actuator.eddy_resistance_ohm *= 1.4;
+    base.actuator.damping_ratio *= 0.75;
+    base.actuator.resonance_hz *= 1.2;
+    std::fs::write(path, serde_json::to_string_pretty(&base).expect("JSON"))
+        .expect("datasheet written");
+}
