@@ -20,7 +20,8 @@
 //! interrupt.
 //!
 //! Before the first tick the firmware sends a `B` frame (control rate, tick count); after the last
-//! an `E` frame with its exit status.
+//! an `E` frame with its exit status, and it exits once the bench host has acknowledged that frame
+//! (`magctl::link::EndAck`, at most [`MAX_LINK_POLLS`] polls).
 //!
 //! **Faults** (`docs/hil.md`): a silent link (no complete frame within [`MAX_LINK_POLLS`]), a
 //! frame with a wrong sync byte, kind or sequence number is a *link fault*: the sample of that
@@ -84,8 +85,9 @@ mod firmware {
         CommandFlags, Conditioning, ConditioningState, ControlLoop, InverseKind, LoopState,
     };
     use magctl::link::{
-        CommandFrame, ProgrammeFrame, Sample, SampleAssembler, SampleFrame, KIND_BEGIN,
-        KIND_COMMAND, KIND_END, KIND_SAMPLE_COUNT, KIND_SAMPLE_METRES, SAMPLE_FRAME_BYTES,
+        CommandFrame, EndAck, EndAckWatch, ProgrammeFrame, Sample, SampleAssembler, SampleFrame,
+        KIND_BEGIN, KIND_COMMAND, KIND_END, KIND_SAMPLE_COUNT, KIND_SAMPLE_METRES,
+        SAMPLE_FRAME_BYTES,
     };
     use magctl::output::{CurrentOutput, DacScale};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
@@ -336,6 +338,26 @@ mod firmware {
             .and_then(|()| uart.flush(MAX_LINK_POLLS));
         if sent.is_err() {
             defmt::warn!("the end frame did not leave the UART within its bound");
+            semihosting::exit(status)
+        }
+        // Exit only once the bench host has read `E` (its acknowledgement, `magctl::link::EndAck`),
+        // reading and dropping whatever else arrives meanwhile: QEMU's socket, closed with bytes
+        // unread, is reset, and the reset can drop the frames the host has not received yet.
+        // Bounded like any receive; a host that never acknowledges is reported, the exit status
+        // is the run's.
+        let mut watch = EndAckWatch::new(EndAck {
+            seq,
+            status: status as u16,
+        });
+        let mut acknowledged = false;
+        for _ in 0..MAX_LINK_POLLS {
+            if uart.try_read().is_some_and(|byte| watch.push(byte)) {
+                acknowledged = true;
+                break;
+            }
+        }
+        if !acknowledged {
+            defmt::warn!("the bench host did not acknowledge the end frame within its bound");
         }
         semihosting::exit(status)
     }

@@ -30,8 +30,8 @@ use crate::util::{display, run_checked, Ctx};
 use anyhow::{bail, ensure, Context, Result};
 use magctl::inverse::CommandFlags;
 use magctl::link::{
-    CommandFrame, ProgrammeFrame, Sample, SampleFrame, COMMAND_FRAME_BYTES, KIND_COMMAND, KIND_END,
-    SAMPLE_FRAME_BYTES,
+    CommandFrame, EndAck, ProgrammeFrame, Sample, SampleFrame, COMMAND_FRAME_BYTES, KIND_COMMAND,
+    KIND_END, SAMPLE_FRAME_BYTES,
 };
 use magctl::params::BAKED_PARAMETERS;
 use magctl::sensor::SensorScale;
@@ -297,13 +297,17 @@ pub fn run_once(
         .context("cannot start the plant program")?;
     let plant_in = plant_child.stdin.take().context("plant stdin")?;
     let plant_out = plant_child.stdout.take().context("plant stdout")?;
+    // Both bridge threads write to the firmware (samples; the acknowledgement of `E`), a whole
+    // frame at a time.
+    let to_firmware = Arc::new(Mutex::new(socket.try_clone()?));
     let commands: Arc<Mutex<Vec<CommandFrame>>> = Arc::new(Mutex::new(Vec::new()));
     let samples: Arc<Mutex<Vec<Sample>>> = Arc::new(Mutex::new(Vec::new()));
 
     // Firmware → plant: copy, decode the command frames (the k-th `C` frame is tick k's).
     let fw_to_plant = {
-        let mut from = socket.try_clone()?;
+        let mut from = socket;
         let commands = commands.clone();
+        let to_firmware = to_firmware.clone();
         let mut to = plant_in;
         std::thread::spawn(move || -> Result<()> {
             let mut buf = [0u8; COMMAND_FRAME_BYTES];
@@ -322,6 +326,15 @@ pub fn run_once(
                 // The plant may already be gone after a fault: ignore write errors.
                 let _ = to.write_all(&buf).and_then(|_| to.flush());
                 if frame.kind == KIND_END {
+                    // Everything the firmware sent has been read: it may exit (its `end`).
+                    let ack = EndAck {
+                        seq: frame.seq,
+                        status: frame.aux,
+                    };
+                    let _ = to_firmware
+                        .lock()
+                        .map_err(|_| anyhow::anyhow!("poisoned"))?
+                        .write_all(&ack.encode());
                     return Ok(());
                 }
             }
@@ -329,7 +342,7 @@ pub fn run_once(
     };
     // Plant → firmware: copy, decode the sample frames, inject faults.
     let plant_to_fw = {
-        let mut to = socket;
+        let to = to_firmware;
         let samples = samples.clone();
         let mut from = plant_out;
         let inject = run.inject;
@@ -372,11 +385,13 @@ pub fn run_once(
                         seq: tick as u16,
                         current_a,
                     };
-                    if to.write_all(&r.encode()).is_err() {
+                    let mut w = to.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
+                    if w.write_all(&r.encode()).is_err() {
                         return Ok(());
                     }
                 }
-                if to.write_all(&bytes).is_err() {
+                let mut w = to.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
+                if w.write_all(&bytes).is_err() {
                     return Ok(());
                 }
                 tick += 1;

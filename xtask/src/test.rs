@@ -287,9 +287,11 @@ fn await_blind_suite(_ctx: &Ctx) -> Result<()> {
 /// `hil`'s measurement) with the background blind suite confined to the last core (`taskset`,
 /// util-linux), so that the latency-bound lock-step keeps a core of its own; every core again
 /// after it. Measured beside the suite on both cores: `hil`'s default run 12.5 s under `nice
-/// -n19`, 7.5 s in the idle class (5 s alone), and once, in the idle class, the link lost the
-/// firmware's last two frames of the `garbage` fault run. The suite's threads were counted
-/// from every core (`BLIND_THREADS`, `RAYON_NUM_THREADS`).
+/// -n19`, 7.5 s in the idle class (5 s alone). (Once, in the idle class, the link lost the
+/// firmware's last two frames of the `garbage` fault run: QEMU's socket was reset on exit with
+/// bytes unread; the firmware now exits only after the bridge acknowledges its `E` frame,
+/// `magctl::link::EndAck`.) The suite's threads were counted from every core (`BLIND_THREADS`,
+/// `RAYON_NUM_THREADS`).
 fn with_background_confined(step: impl FnOnce() -> Result<()>) -> Result<()> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let set_cores = |list: String| {
