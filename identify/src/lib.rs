@@ -15,6 +15,8 @@
 //! * [`fit`]: non-negative, optionally regularized least squares of the cell masses (and of an
 //!   optional affine/reversible part) solved as a convex QP with `clarabel`.
 //! * [`model`]: a fitted generic Preisach model (JSON), its prediction and the NRMSE metric.
+//! * [`drift`]: whether a quasi-static record returns to the same state with the same reading
+//!   (a time-dependent effect or friction otherwise: a warning of `maglab identify`).
 //! * [`magnetization`]: displacement → magnetization through the static model (6).
 //! * [`excite`]: the quasi-static excitation current (first-order reversal curves).
 //! * [`experiments`]: the dataset convention — which files are quasi-static and which are dynamic
@@ -37,6 +39,7 @@ pub mod columns;
 pub mod data;
 pub mod dataset_info;
 pub mod design;
+pub mod drift;
 pub mod dynamics;
 pub mod excite;
 pub mod experiments;

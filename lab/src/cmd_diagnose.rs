@@ -178,16 +178,17 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
     }
     let _ = writeln!(
         s,
-        "\n| band (Hz) | RMS (µm) | systematic (µm) | gap / motion | amplitude ratio | phase error (deg) | disagrees |\n|---|---|---|---|---|---|---|"
+        "\n| band (Hz) | RMS (µm) | systematic (µm) | gap / motion | harmonic | amplitude ratio | phase error (deg) | disagrees |\n|---|---|---|---|---|---|---|---|"
     );
     for b in &d.where_.bands {
         let _ = writeln!(
             s,
-            "| {:.1} | {} | {} | {:.2} % | {:.3} | {:+.2} | {} |",
+            "| {:.1} | {} | {} | {:.2} % | {} | {:.3} | {:+.2} | {} |",
             b.frequency_hz,
             um(b.rms_m),
             um(b.systematic_m),
             100.0 * b.relative_gap,
+            b.displacement_order,
             b.amplitude_ratio,
             b.phase_error_deg,
             if b.disagrees { "yes" } else { "no" }

@@ -340,13 +340,27 @@ pub fn run(args: &Args) -> Result<()> {
             .details
             .insert(REVERSIBLE_PART.into(), choice);
     }
-    let warnings = quality::warnings(
+    let mut warnings = quality::warnings(
         &id.files,
         id.fit.weights.iter().sum(),
         id.params.actuator.saturation_magnetization_a_per_m,
         &residuals,
         fitted_up_to_hz,
     );
+    // Why a quasi-static record is missed, when it is time (or friction) rather than the shape of
+    // the loop: its returns to the same state disagree.
+    for m in &dataset.measurements {
+        let name = m.path.file_name().map_or_else(
+            || m.path.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        warnings.extend(maglab_identify::drift::drift_warning(
+            &name,
+            &m.t_s,
+            &m.current_a,
+            &m.displacement_m,
+        ));
+    }
     for w in &warnings {
         println!("WARNING: {w}");
     }
