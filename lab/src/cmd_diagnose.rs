@@ -80,6 +80,12 @@ pub fn run(args: &Args) -> Result<()> {
         .chain(d.additional_effects.iter().map(|s| s.as_str()))
         .collect();
     println!("verdict: {} — {}", named.join(" + "), d.verdict_reason);
+    if !d.equal_on_training.is_empty() {
+        println!(
+            "  as good on the training experiments (only the held-out extrapolation ranks them): {}",
+            d.equal_on_training.join(", ")
+        );
+    }
     for w in &d.parameter_file_warnings {
         println!("WARNING (from the parameter file's identification): {w}");
     }
@@ -160,6 +166,18 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
             s,
             "Nearly as good (within 10 % of the winner's held-out error): {}.\n",
             d.ambiguous_with.join(", ")
+        );
+    }
+    if !d.equal_on_training.is_empty() {
+        let _ = writeln!(
+            s,
+            "Fit the training experiments as well (training RMS within {:.0} % of the winner's) \
+             and also explain the held-out gap: {}. The training data cannot tell them from the \
+             verdict; only the extrapolation to the held-out experiments ranks them. A measurement \
+             that separates them decides (the coil's current for an amplifier, the sensor's step \
+             response for a sensor, the rod's resonance without the load for a load).\n",
+            100.0 * (maglab_diagnose::diagnosis::EQUAL_ON_TRAINING - 1.0),
+            d.equal_on_training.join(", ")
         );
     }
     let _ = writeln!(s, "Criterion: {}.\n", d.criterion);
