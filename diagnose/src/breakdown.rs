@@ -189,26 +189,24 @@ pub fn analyse(
                 rate_hz,
             )
         };
-        let model_amplitudes: Vec<f64> = (1..=4).map(|o| at_order(y, o).norm()).collect();
+        // Orders 1-4 of both signals, once: the main harmonic's ratio and phase and the
+        // harmonics table come from them.
+        let measured: Vec<_> = (1..=4).map(|o| at_order(meas, o)).collect();
+        let model: Vec<_> = (1..=4).map(|o| at_order(y, o)).collect();
         let order = 1
             + (0..4)
-                .max_by(|&a, &b| model_amplitudes[a].total_cmp(&model_amplitudes[b]))
+                .max_by(|&a, &b| model[a].norm().total_cmp(&model[b].norm()))
                 .unwrap_or(0);
-        let cm = at_order(meas, order);
-        let cy = at_order(y, order);
+        let (cm, cy) = (measured[order - 1], model[order - 1]);
         let ratio = cm.norm() / cy.norm().max(1e-300);
         let phase = (cm / cy).arg().to_degrees();
         let len = window.len() as f64;
         let dc = window.clone().map(|k| meas[k] - y[k]).sum::<f64>() / len;
         let harmonics = (2..=4)
-            .map(|order| {
-                let f = order as f64 * info.fundamental_hz;
-                Harmonic {
-                    order,
-                    measured_m: signal::fourier_coefficient(meas, window.clone(), f, rate_hz)
-                        .norm(),
-                    model_m: signal::fourier_coefficient(y, window.clone(), f, rate_hz).norm(),
-                }
+            .map(|order| Harmonic {
+                order,
+                measured_m: measured[order - 1].norm(),
+                model_m: model[order - 1].norm(),
             })
             .collect();
         let rms = all.rms();

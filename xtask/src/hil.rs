@@ -378,6 +378,7 @@ pub fn run_once(
                     .lock()
                     .map_err(|_| anyhow::anyhow!("poisoned"))?
                     .push(frame.sample);
+                let mut w = to.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
                 if let Some(p) = &programme {
                     // Measurement mode: the programme's current of this tick goes first.
                     let current_a = p.current_a.get(tick as usize).copied().unwrap_or(0.0);
@@ -385,12 +386,10 @@ pub fn run_once(
                         seq: tick as u16,
                         current_a,
                     };
-                    let mut w = to.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
                     if w.write_all(&r.encode()).is_err() {
                         return Ok(());
                     }
                 }
-                let mut w = to.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
                 if w.write_all(&bytes).is_err() {
                     return Ok(());
                 }
