@@ -347,6 +347,21 @@ pub fn run(args: &Args) -> Result<()> {
         &residuals,
         fitted_up_to_hz,
     );
+    // A constant the fit left at an end of its search range has absorbed something, or the
+    // base file is far off.
+    if let Some(fit) = &dynamic {
+        let best = fit.best();
+        let a = &base.actuator;
+        warnings.extend(quality::search_bound_warnings(
+            [
+                best.eddy_resistance_ohm,
+                best.damping_ratio,
+                best.resonance_hz,
+            ],
+            [a.eddy_resistance_ohm, a.damping_ratio, a.resonance_hz],
+            maglab_diagnose::identification::IDENTIFICATION_RANGE,
+        ));
+    }
     // Why a quasi-static record is missed, when it is time (or friction) rather than the shape of
     // the loop: its returns to the same state disagree.
     for m in &dataset.measurements {
