@@ -119,6 +119,18 @@ pub fn warnings(
 /// A constant this close to an end of its search range (a factor) is at that end.
 pub const AT_BOUND: f64 = 1.01;
 
+/// Whether `value` lies at an end of the search `centre` ×/÷ `factor` (within [`AT_BOUND`]):
+/// `Some(true)` the upper end, `Some(false)` the lower, `None` inside.
+pub fn at_search_bound(value: f64, centre: f64, factor: f64) -> Option<bool> {
+    if value <= centre / factor * AT_BOUND {
+        Some(false)
+    } else if value >= centre * factor / AT_BOUND {
+        Some(true)
+    } else {
+        None
+    }
+}
+
 /// The warnings for identified dynamic constants that lie at an end of their search range:
 /// `identified` and `centre` are `[R_eddy Ω, ξ, f0 Hz]` (the identified values and the base
 /// file's, which centre the search), `factors` how far the search reaches on each side.
@@ -146,12 +158,10 @@ pub fn search_bound_warnings(
         } else {
             format!(" {unit}")
         };
-        let end = if value <= c / f * AT_BOUND {
-            Some(("lower", c / f, "/"))
-        } else if value >= c * f / AT_BOUND {
-            Some(("upper", c * f, "x"))
-        } else {
-            None
+        let end = match at_search_bound(value, c, f) {
+            Some(false) => Some(("lower", c / f, "/")),
+            Some(true) => Some(("upper", c * f, "x")),
+            None => None,
         };
         if let Some((side, bound, op)) = end {
             out.push(format!(

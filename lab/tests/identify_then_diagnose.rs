@@ -112,6 +112,14 @@ fn identify_then_diagnose(rig_args: &[&str]) {
         "{}",
         id["provenance"]["warnings"]
     );
+    // The sweep's second-pass lag correction used the sines' constants (none at an end of its
+    // search), not the datasheet's.
+    let lags = &id["provenance"]["masses_lag_correction"];
+    assert_eq!(
+        lags["base_file_value_kept_for"],
+        serde_json::json!([]),
+        "{lags}"
+    );
     let a = &id["actuator"];
     let rel = |key: &str, true_value: f64| {
         let v = a[key].as_f64().expect(key);
