@@ -436,7 +436,8 @@ pub const EXPLAINED_RATIO: f64 = 0.3;
 /// fraction of the refitted nominal gap (it removes ≥ 75 % of its energy): a gap not far above
 /// the noise cannot be cut to 0.3 of itself. Replayed on the 69 blind-suite cases
 /// whose best single candidate left 30–50 % in the last full run of seeds 1–10, 12 and 13 (`suite_case SEED INDEX`): seed 9 case 21 (an
-/// amplifier lag, `none` before) named right, no other verdict changed, every out-of-library
+/// amplifier lag, `none` before) named right, seed 8 case 15 (eddy + amplifier) named eddy
+/// instead of eddy + sensor (wrong either way), no other verdict changed, every out-of-library
 /// case among them still `unexplained`; on the identified suite's six folders where a candidate
 /// falls in that band, no verdict changed.
 pub const WITHIN_NOISE_RATIO: f64 = 0.5;
