@@ -1,5 +1,6 @@
 //! Which identified constants lie at an end of the identification's search range
-//! (`maglab_identify::quality::search_bound_warnings`, the warning `maglab identify` prints), for
+//! (`maglab_identify::quality::at_search_bound`, the test behind the warning `maglab identify`
+//! prints), for
 //! the case folders the identified suite writes (each with the base `datasheet.json` and
 //! `identified.json`; `IDENTIFIED_DIR=DIR IDENTIFIED_CASES=32 IDENTIFIED_SEED=N cargo test
 //! --release -p maglab --test identified_suite -- --ignored`). The figures in `quality`'s docs:
@@ -10,7 +11,7 @@
 
 use actuator_params::ActuatorParams;
 use maglab_diagnose::identification::IDENTIFICATION_RANGE;
-use maglab_identify::quality::search_bound_warnings;
+use maglab_identify::quality::{at_search_bound, DYNAMIC_CONSTANT_NAMES};
 use std::path::Path;
 
 fn constants(p: &ActuatorParams) -> [f64; 3] {
@@ -28,14 +29,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let dir = Path::new(folder);
         let base = ActuatorParams::load(&dir.join("datasheet.json"))?;
         let identified = ActuatorParams::load(&dir.join("identified.json"))?;
-        let warnings = search_bound_warnings(
-            constants(&identified),
-            constants(&base),
-            IDENTIFICATION_RANGE,
-        );
-        let ends: Vec<&str> = warnings
-            .iter()
-            .filter_map(|w| w.split(" lies at the ").next())
+        let (identified, base) = (constants(&identified), constants(&base));
+        let ends: Vec<String> = (0..3)
+            .filter_map(|k| {
+                at_search_bound(identified[k], base[k], IDENTIFICATION_RANGE[k])
+                    .map(|_| format!("{} = {:.4}", DYNAMIC_CONSTANT_NAMES[k], identified[k]))
+            })
             .collect();
         if !ends.is_empty() {
             at_bound += 1;

@@ -116,6 +116,9 @@ pub fn warnings(
     out
 }
 
+/// The dynamic constants in the order of the `[f64; 3]` arrays below.
+pub const DYNAMIC_CONSTANT_NAMES: [&str; 3] = ["R_eddy", "xi", "f0"];
+
 /// A constant this close to an end of its search range (a factor) is at that end.
 pub const AT_BOUND: f64 = 1.01;
 
@@ -139,7 +142,7 @@ pub fn at_search_bound(value: f64, centre: f64, factor: f64) -> Option<bool> {
 /// value is far from this rod's, or the constant has absorbed an effect the model lacks (a lag —
 /// the sensor's, the amplifier's, a load's — reads as a lower resonance and slower eddy
 /// currents). Measured on the bench plant's identified suite (seeds 1–4, 128 folders identified
-/// from a datasheet's base: `cargo run --release -p maglab-identify --example bound_scan --
+/// from a datasheet's base: `cargo run --release -p maglab-diagnose --example bound_scan --
 /// FOLDERS`): no constant at a bound in the 16 cases without an effect, in 2 of the 32 with an
 /// out-of-library effect, 20 of the 67 with library effects (lags; of them 14 diagnosed wrong
 /// afterwards) and 7 of the 13 with thermal drift.
@@ -148,11 +151,11 @@ pub fn search_bound_warnings(
     centre: [f64; 3],
     factors: [f64; 3],
 ) -> Vec<String> {
-    const NAMES: [(&str, &str); 3] = [("R_eddy", "ohm"), ("xi", ""), ("f0", "Hz")];
+    const UNITS: [&str; 3] = ["ohm", "", "Hz"];
     let mut out = Vec::new();
     for k in 0..3 {
         let (value, c, f) = (identified[k], centre[k], factors[k]);
-        let (name, unit) = NAMES[k];
+        let (name, unit) = (DYNAMIC_CONSTANT_NAMES[k], UNITS[k]);
         let unit = if unit.is_empty() {
             String::new()
         } else {

@@ -225,7 +225,6 @@ pub fn run(args: &Args) -> Result<()> {
             Some(fit) => fit,
             None => identify_dynamics(args, &split, &id.params, documented.as_ref())?,
         };
-        let best = fit.best();
         // A constant the sines left at an end of its search has absorbed something the model
         // lacks (or the base is far off): the sweep's correction keeps the base file's value
         // for it, as in the first pass. With a lag in the sines R_eddy lands on its floor, and
@@ -233,13 +232,8 @@ pub fn run(args: &Args) -> Result<()> {
         // their sum or more (README, "What the masses account for"); on the identified suite's
         // 29 folders (of 128, seeds 1-4) with a constant at an end this named one more case
         // right and lost none.
-        let sines = [
-            best.eddy_resistance_ohm,
-            best.damping_ratio,
-            best.resonance_hz,
-        ];
-        let a = &base.actuator;
-        let based = [a.eddy_resistance_ohm, a.damping_ratio, a.resonance_hz];
+        let sines = fit_constants(&fit);
+        let based = base_constants(&base);
         let range = maglab_diagnose::identification::IDENTIFICATION_RANGE;
         let lags: [f64; 3] = std::array::from_fn(|k| {
             if quality::at_search_bound(sines[k], based[k], range[k]).is_some() {
@@ -250,7 +244,7 @@ pub fn run(args: &Args) -> Result<()> {
         });
         let kept: Vec<&str> = (0..3)
             .filter(|&k| lags[k] != sines[k])
-            .map(|k| ["R_eddy", "xi", "f0"][k])
+            .map(|k| quality::DYNAMIC_CONSTANT_NAMES[k])
             .collect();
         println!(
             "second pass: the masses with the lags of R_eddy = {:.2} Ω, ξ = {:.4}, f0 = {:.1} Hz{}",
@@ -396,15 +390,9 @@ pub fn run(args: &Args) -> Result<()> {
     // A constant the fit left at an end of its search range has absorbed something, or the
     // base file is far off.
     if let Some(fit) = &dynamic {
-        let best = fit.best();
-        let a = &base.actuator;
         warnings.extend(quality::search_bound_warnings(
-            [
-                best.eddy_resistance_ohm,
-                best.damping_ratio,
-                best.resonance_hz,
-            ],
-            [a.eddy_resistance_ohm, a.damping_ratio, a.resonance_hz],
+            fit_constants(fit),
+            base_constants(&base),
             maglab_diagnose::identification::IDENTIFICATION_RANGE,
         ));
     }
@@ -882,6 +870,22 @@ fn lowest_frequency_nrmse(fit: &DynamicFit) -> Option<f64> {
 ///
 /// Returns the decision (for the provenance), the identification and options to go on with and,
 /// when step 3 ran, the chosen model's first-pass dynamic fit.
+/// `[R_eddy, ξ, f0]` of a parameter file (the search's centre).
+fn base_constants(params: &actuator_params::ActuatorParams) -> [f64; 3] {
+    let a = &params.actuator;
+    [a.eddy_resistance_ohm, a.damping_ratio, a.resonance_hz]
+}
+
+/// `[R_eddy, ξ, f0]` the sines gave.
+fn fit_constants(fit: &DynamicFit) -> [f64; 3] {
+    let best = fit.best();
+    [
+        best.eddy_resistance_ohm,
+        best.damping_ratio,
+        best.resonance_hz,
+    ]
+}
+
 fn choose_reversible(
     args: &Args,
     split: &SplitDataset,
