@@ -1,5 +1,6 @@
 //! Prints the blind suite for any seed: `cargo run --release -p maglab-diagnose --example
-//! blind_suite -- SEED [COUNT]`.
+//! blind_suite -- SEED [COUNT]` (`BLIND_DESIGN=varied`: the varied experiment design,
+//! `maglab_plant::suite::Design`).
 #[path = "../tests/blind/mod.rs"]
 mod blind;
 

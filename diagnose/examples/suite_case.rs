@@ -1,5 +1,5 @@
 //! One blind-suite case in detail: `cargo run --release -p maglab-diagnose --example suite_case
-//! -- SEED INDEX [COUNT]`.
+//! -- SEED INDEX [COUNT]` (`BLIND_DESIGN=varied`: the varied experiment design).
 #[path = "../tests/blind/mod.rs"]
 mod blind;
 
@@ -10,10 +10,11 @@ fn main() {
     let count: usize = args.get(2).map_or(32, |s| s.parse().unwrap());
     let params = actuator_params::paper_defaults();
     let kind = maglab_plant::suite::kinds(seed, count)[index].clone();
-    let case = maglab_plant::suite::draw(
+    let case = maglab_plant::suite::draw_with(
         &params,
         seed.wrapping_mul(1000).wrapping_add(index as u64),
         kind,
+        blind::design_from_env(),
     )
     .unwrap();
     println!("{}", case.describe());

@@ -11,7 +11,9 @@
 //! direction — cases whose margins lie within the fits' flat directions — so an exact count
 //! would fail on unrelated changes.
 //!
-//! `BLIND_SEED` (default 1) and `BLIND_CASES` (default 32) choose another suite; the example
+//! `BLIND_SEED` (default 1) and `BLIND_CASES` (default 32) choose another suite,
+//! `BLIND_DESIGN=varied` another experiment design per case (`maglab_plant::suite::Design`:
+//! frequencies, amplitudes, bias, rate and duration drawn too; no rule was chosen on it); the example
 //! `cargo run --release -p maglab-diagnose --example blind_suite -- SEED COUNT` prints one
 //! without asserting.
 mod blind;
@@ -38,10 +40,16 @@ fn blind_suite_names_the_right_effect() {
         started.elapsed().as_secs_f64()
     );
     // Every case's gaps lie in the drawn 5–30 % band (or the case is noise only).
+    // In the varied design an effect's plausible range may not reach 5 % at the frequencies a
+    // case was drawn with (a 200 Hz sensor lag seen up to 270 Hz): such cases stay in, weaker.
+    let lowest = match blind::design_from_env() {
+        maglab_plant::suite::Design::Standard => 0.04,
+        maglab_plant::suite::Design::Varied => 0.0,
+    };
     for o in &outcomes {
         for (g, e) in o.case.gaps.iter().zip(&o.case.effects) {
             assert!(
-                (0.04..=0.32).contains(g),
+                (lowest..=0.32).contains(g),
                 "case {} ({}): gap {:.1} % of {} outside 5–30 %",
                 o.case.seed,
                 o.case.kind.label(),

@@ -11,8 +11,10 @@
 //! at the truth). The masses, the fit's prior, are the plant's.
 //!
 //! `IDENTIFIED_DIR` keeps the outputs. `IDENTIFIED_SEED` (default 1) and `IDENTIFIED_CASES` (the
-//! first N cases; 32 is the whole suite) choose the run; without `IDENTIFIED_CASES`, four cases of
+//! first N cases, 32 the whole suite, or a list such as `3,11,14`) choose the run; without `IDENTIFIED_CASES`, four cases of
 //! the seed chosen for what they exercise (about two minutes: see the test). It asserts ≥ 90 % correct.
+//! `IDENTIFIED_DESIGN=varied` records the sines in a design drawn per case (frequencies,
+//! amplitudes, bias, rate, duration: `maglab_plant::suite::Design`).
 //!
 //! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on all 32 cases
 //! (`IDENTIFIED_CASES=32`) from the datasheet's base: 23/32 correct on seed 1, 22/32 on seed 4
@@ -69,10 +71,15 @@ fn write_case(
     root: &Path,
 ) -> (suite::Case, std::path::PathBuf, std::path::PathBuf) {
     let params = actuator_params::paper_defaults();
-    let case = suite::draw(
+    // `IDENTIFIED_DESIGN=varied`: the sines in a design drawn per case (`suite::Design`).
+    let design = std::env::var("IDENTIFIED_DESIGN").map_or(suite::Design::Standard, |s| {
+        suite::Design::parse(&s).unwrap_or_else(|e| panic!("IDENTIFIED_DESIGN: {e}"))
+    });
+    let case = suite::draw_with(
         &params,
         seed.wrapping_mul(1000).wrapping_add(index as u64),
         kind,
+        design,
     )
     .expect("the case is drawn");
     let rate = case.settings.rate_hz;
@@ -168,6 +175,11 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
     // `--reversible auto` must keep (12) and a sensor gain nonlinearity whose sweep a
     // reversible part also fits and which it must not keep (20).
     let indices: Vec<usize> = match std::env::var("IDENTIFIED_CASES") {
+        // A count N (the first N cases) or a list of case numbers, `3,11,14`.
+        Ok(s) if s.contains(',') => s
+            .split(',')
+            .map(|i| i.trim().parse().expect("IDENTIFIED_CASES: case numbers"))
+            .collect(),
         Ok(s) => (0..s.parse::<usize>().expect("IDENTIFIED_CASES")).collect(),
         Err(_) => vec![0, 4, 12, 20],
     };

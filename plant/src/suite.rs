@@ -20,12 +20,41 @@
 //! one start state for every experiment, documented in `dataset.json` or not (half the cases);
 //! then the effects: one library effect (target gap 5-30 %), a pair of library effects (5-20 %
 //! each), one out-of-library effect (5-30 %), or none. Everything is drawn from the case's seed.
+//!
+//! **Design.** That sweep is [`Design::Standard`], the one every rule of the diagnosis was
+//! chosen on. [`Design::Varied`] draws the experiment design as well, from a stream of its own
+//! (the same seed gives the same effects, nuisances and start state in either design): 5 to 8
+//! frequencies log-spaced from 10-30 Hz up to 250-600 Hz (through the rod's resonance), 2 or 3
+//! amplitudes, a bias of 0.3-0.8 A or (a quarter of the cases) none, the current then
+//! reversing with 0.4-1.6 A amplitudes, 5, 10 or 20 kHz, 0.3-1 s per experiment (at least five
+//! periods of the lowest frequency, and at most 2e5 samples in all where those allow it): a
+//! bench's own choice, which a diagnosis must not depend on.
 
 use crate::actuator::{CurrentBetweenSamples, StartState};
 use crate::bench::{record, record_all, sine_experiment, BenchSettings, Experiment, Recording};
 use crate::effects::{Effect, EFFECTS};
 use actuator_params::ActuatorParams;
 use rand::{Rng, RngExt, SeedableRng};
+
+/// The experiment design of a case (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Design {
+    /// 6 frequencies 20-400 Hz (±5 %) × 2 amplitudes, 0.5 s each at 10 kHz.
+    Standard,
+    /// Frequencies, amplitudes, bias, rate and duration drawn from the case's seed.
+    Varied,
+}
+
+impl Design {
+    /// Parses `standard` or `varied`.
+    pub fn parse(s: &str) -> Result<Design, String> {
+        match s {
+            "standard" => Ok(Design::Standard),
+            "varied" => Ok(Design::Varied),
+            other => Err(format!("design `{other}`: expected `standard` or `varied`")),
+        }
+    }
+}
 
 /// What a case contains.
 #[derive(Debug, Clone, PartialEq)]
@@ -88,6 +117,10 @@ pub struct Case {
     pub documented: bool,
     /// The experiments.
     pub experiments: Vec<Experiment>,
+    /// The experiment design and, for [`Design::Varied`], its sweep in words.
+    pub design: Design,
+    /// The sweep in words (empty for [`Design::Standard`]).
+    pub sweep: String,
 }
 
 impl Case {
@@ -117,7 +150,11 @@ impl Case {
             self.settings.noise_m * 1e6,
             self.start.name(),
             if self.documented { " (documented)" } else { "" }
-        )
+        ) + &if self.sweep.is_empty() {
+            String::new()
+        } else {
+            format!("; {}", self.sweep)
+        }
     }
 
     /// Records the case's dataset.
@@ -434,9 +471,56 @@ pub fn calibrate(
 
 /// Draws and calibrates a case of `kind` from `seed`.
 pub fn draw(params: &ActuatorParams, seed: u64, kind: Kind) -> Result<Case, String> {
+    draw_with(params, seed, kind, Design::Standard)
+}
+
+/// The sine sweep of a [`Design::Varied`] case, drawn from its own stream: `(rate_hz, bias_a,
+/// amplitudes_a, frequencies_hz, duration_s)`.
+fn varied_design(seed: u64) -> (f64, f64, Vec<f64>, Vec<f64>, f64) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0xde51_9a11_7e5e_ed00);
+    let rate_hz = [5_000.0, 10_000.0, 20_000.0][rng.random_range(0..3)];
+    let bias_a: f64 = rng.random_range(0.3..0.8);
+    let count = rng.random_range(2..=3);
+    let a_lo: f64 = rng.random_range(0.1..0.2);
+    let a_hi = (a_lo * rng.random_range(1.8f64..2.2)).min(bias_a - 0.05);
+    let amplitudes_a: Vec<f64> = (0..count)
+        .map(|i| a_lo + (a_hi - a_lo) * i as f64 / (count - 1) as f64)
+        .collect();
+    let n = rng.random_range(5..=8);
+    let (f_lo, f_hi) = (
+        log_uniform(&mut rng, 10.0, 30.0),
+        log_uniform(&mut rng, 250.0, 600.0),
+    );
+    let frequencies_hz: Vec<f64> = (0..n)
+        .map(|i| {
+            let f = f_lo * (f_hi / f_lo).powf(i as f64 / (n - 1) as f64);
+            f * rng.random_range(0.95..1.05)
+        })
+        .collect();
+    let drawn_s: f64 = rng.random_range(0.3..1.0);
+    let budget_s = 2e5 / (rate_hz * (n * count) as f64);
+    let duration_s = drawn_s.min(budget_s).max(5.0 / f_lo);
+    // A quarter of the benches drive the coil without a bias (drawn last, so the other draws
+    // stay those of a biased bench): the current reverses, the magnetostriction (even in M)
+    // doubles the frequency, and the amplitudes span about the same fields, 0.4-1.6 A.
+    if rng.random_bool(0.25) {
+        let bipolar: Vec<f64> = amplitudes_a.iter().map(|a| (4.0 * a).min(1.6)).collect();
+        return (rate_hz, 0.0, bipolar, frequencies_hz, duration_s);
+    }
+    (rate_hz, bias_a, amplitudes_a, frequencies_hz, duration_s)
+}
+
+/// [`draw`] in a given experiment design (module docs).
+pub fn draw_with(
+    params: &ActuatorParams,
+    seed: u64,
+    kind: Kind,
+    design: Design,
+) -> Result<Case, String> {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let varied = (design == Design::Varied).then(|| varied_design(seed));
     let settings = BenchSettings {
-        rate_hz: 10_000.0,
+        rate_hz: varied.as_ref().map_or(10_000.0, |v| v.0),
         current_between_samples: if rng.random_bool(0.5) {
             CurrentBetweenSamples::Hold
         } else {
@@ -475,6 +559,24 @@ pub fn draw(params: &ActuatorParams, seed: u64, kind: Kind) -> Result<Case, Stri
             ));
         }
     }
+    // The varied design replaces the sweep; the draws above still happen, so that the effects,
+    // nuisances and start state are the standard design's.
+    if let Some((rate_hz, bias_a, amplitudes_a, frequencies_hz, duration_s)) = &varied {
+        experiments.clear();
+        for &f in frequencies_hz {
+            for &a in amplitudes_a {
+                experiments.push(sine_experiment(
+                    experiments.len(),
+                    start,
+                    *bias_a,
+                    a,
+                    f,
+                    *duration_s,
+                    *rate_hz,
+                ));
+            }
+        }
+    }
     let names: Vec<&'static str> = match &kind {
         Kind::Single(e) | Kind::OutOfLibrary(e) => vec![e],
         Kind::Pair(a, b) => vec![a, b],
@@ -509,6 +611,19 @@ pub fn draw(params: &ActuatorParams, seed: u64, kind: Kind) -> Result<Case, Stri
         target_gaps.push(target);
         gaps.push(g);
     }
+    let sweep = varied.map_or(String::new(), |(rate_hz, bias_a, amps, freqs, duration_s)| {
+        format!(
+            "{} frequencies {:.0}-{:.0} Hz x {} amplitudes {:.3}-{:.3} A on {bias_a:.3} A, {:.2} s each at {:.0} kHz",
+            freqs.len(),
+            freqs[0],
+            freqs[freqs.len() - 1],
+            amps.len(),
+            amps[0],
+            amps[amps.len() - 1],
+            duration_s,
+            rate_hz / 1e3
+        )
+    });
     Ok(Case {
         seed,
         kind,
@@ -519,6 +634,8 @@ pub fn draw(params: &ActuatorParams, seed: u64, kind: Kind) -> Result<Case, Stri
         start,
         documented,
         experiments,
+        design,
+        sweep,
     })
 }
 
@@ -564,4 +681,71 @@ pub fn kinds(seed: u64, count: usize) -> Vec<Kind> {
     // Fewer than 24 cases: a random subset of the kinds.
     kinds.truncate(count.max(1));
     kinds
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_varied_design_stays_within_its_documented_bounds() {
+        let mut bipolar = 0;
+        for seed in 0..500u64 {
+            let (rate_hz, bias_a, amps, freqs, duration_s) = varied_design(seed);
+            assert!(
+                [5e3, 1e4, 2e4].contains(&rate_hz),
+                "seed {seed}: {rate_hz} Hz"
+            );
+            assert!((2..=3).contains(&amps.len()) && (5..=8).contains(&freqs.len()));
+            assert!(
+                amps.windows(2).all(|w| w[0] < w[1]),
+                "seed {seed}: {amps:?}"
+            );
+            if bias_a == 0.0 {
+                bipolar += 1;
+                assert!(
+                    amps[0] >= 0.4 && amps[amps.len() - 1] <= 1.6,
+                    "seed {seed}: {amps:?}"
+                );
+            } else {
+                // On a bias the current never reverses its sign.
+                assert!((0.3..0.8).contains(&bias_a), "seed {seed}: bias {bias_a}");
+                assert!(amps[0] >= 0.1 && amps[amps.len() - 1] <= bias_a - 0.05 + 1e-12);
+            }
+            assert!(
+                freqs.windows(2).all(|w| w[0] < w[1]),
+                "seed {seed}: {freqs:?}"
+            );
+            assert!(freqs[0] >= 0.95 * 10.0 && freqs[freqs.len() - 1] <= 1.05 * 600.0);
+            assert!(freqs[freqs.len() - 1] >= 0.95 * 250.0 && freqs[0] <= 1.05 * 30.0);
+            assert!(duration_s >= 5.0 / freqs[0] / 1.05 - 1e-12 && duration_s <= 1.0);
+            let samples = duration_s * rate_hz * (amps.len() * freqs.len()) as f64;
+            assert!(samples <= 2e5 + 1.0 || duration_s * freqs[0] <= 5.0 * 1.05 + 1e-9);
+        }
+        assert!(
+            (90..160).contains(&bipolar),
+            "{bipolar} of 500 without a bias"
+        );
+    }
+
+    #[test]
+    fn the_design_changes_the_sweep_only() {
+        let params = actuator_params::paper_defaults();
+        for seed in [1u64, 2, 12_021] {
+            let standard = draw(&params, seed, Kind::NoiseOnly).unwrap();
+            let varied = draw_with(&params, seed, Kind::NoiseOnly, Design::Varied).unwrap();
+            assert_eq!(standard.start, varied.start);
+            assert_eq!(standard.documented, varied.documented);
+            assert_eq!(
+                standard.settings.channel_skew_samples,
+                varied.settings.channel_skew_samples
+            );
+            assert_eq!(standard.settings.noise_m, varied.settings.noise_m);
+            assert_eq!(standard.experiments.len(), 12);
+            assert!(standard.sweep.is_empty() && !varied.sweep.is_empty());
+            let (rate_hz, _, amps, freqs, _) = varied_design(seed);
+            assert_eq!(varied.settings.rate_hz, rate_hz);
+            assert_eq!(varied.experiments.len(), amps.len() * freqs.len());
+        }
+    }
 }

@@ -69,10 +69,19 @@ pub fn run_case(params: &actuator_params::ActuatorParams, case: Case) -> Outcome
     }
 }
 
+/// The experiment design from `BLIND_DESIGN` (`standard`, the default, or `varied`:
+/// `maglab_plant::suite::Design`).
+pub fn design_from_env() -> suite::Design {
+    std::env::var("BLIND_DESIGN").map_or(suite::Design::Standard, |s| {
+        suite::Design::parse(&s).unwrap_or_else(|e| panic!("BLIND_DESIGN: {e}"))
+    })
+}
+
 /// The suite of `count` cases from `seed`, drawn and diagnosed on all cores (each case is
-/// independent; the outcomes come back in case order).
+/// independent; the outcomes come back in case order), in the design of [`design_from_env`].
 pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
     let params = actuator_params::paper_defaults();
+    let design = design_from_env();
     let kinds = suite::kinds(seed, count);
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
@@ -87,10 +96,11 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let Some(kind) = kinds.get(i) else { break };
-                let case = suite::draw(
+                let case = suite::draw_with(
                     &params,
                     seed.wrapping_mul(1000).wrapping_add(i as u64),
                     kind.clone(),
+                    design,
                 )
                 .expect("the case is drawn");
                 let o = run_case(&params, case);
