@@ -72,9 +72,7 @@ fn write_case(
 ) -> (suite::Case, std::path::PathBuf, std::path::PathBuf) {
     let params = actuator_params::paper_defaults();
     // `IDENTIFIED_DESIGN=varied`: the sines in a design drawn per case (`suite::Design`).
-    let design = std::env::var("IDENTIFIED_DESIGN").map_or(suite::Design::Standard, |s| {
-        suite::Design::parse(&s).unwrap_or_else(|e| panic!("IDENTIFIED_DESIGN: {e}"))
-    });
+    let design = suite::Design::from_env("IDENTIFIED_DESIGN").unwrap_or_else(|e| panic!("{e}"));
     let case = suite::draw_with(
         &params,
         seed.wrapping_mul(1000).wrapping_add(index as u64),

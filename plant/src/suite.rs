@@ -54,6 +54,14 @@ impl Design {
             other => Err(format!("design `{other}`: expected `standard` or `varied`")),
         }
     }
+
+    /// The design named by the environment variable `name` (the test harnesses'
+    /// `BLIND_DESIGN`, `IDENTIFIED_DESIGN`); [`Design::Standard`] when it is unset.
+    pub fn from_env(name: &str) -> Result<Design, String> {
+        std::env::var(name).map_or(Ok(Design::Standard), |s| {
+            Design::parse(&s).map_err(|e| format!("{name}: {e}"))
+        })
+    }
 }
 
 /// What a case contains.

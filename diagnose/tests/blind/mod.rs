@@ -72,9 +72,7 @@ pub fn run_case(params: &actuator_params::ActuatorParams, case: Case) -> Outcome
 /// The experiment design from `BLIND_DESIGN` (`standard`, the default, or `varied`:
 /// `maglab_plant::suite::Design`).
 pub fn design_from_env() -> suite::Design {
-    std::env::var("BLIND_DESIGN").map_or(suite::Design::Standard, |s| {
-        suite::Design::parse(&s).unwrap_or_else(|e| panic!("BLIND_DESIGN: {e}"))
-    })
+    suite::Design::from_env("BLIND_DESIGN").unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The suite of `count` cases from `seed`, drawn and diagnosed on all cores (each case is
