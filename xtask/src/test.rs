@@ -284,34 +284,54 @@ fn await_blind_suite(_ctx: &Ctx) -> Result<()> {
 }
 
 /// Runs `step` (a step with QEMU in lock-step with a plant over TCP: 121 723 round trips in
-/// `hil`'s measurement) with the background blind suite confined to the last core (`taskset`,
-/// util-linux), so that the latency-bound lock-step keeps a core of its own; every core again
-/// after it. Measured beside the suite on both cores: `hil`'s default run 12.5 s under `nice
-/// -n19`, 7.5 s in the idle class (5 s alone). (Once, in the idle class, the link lost the
-/// firmware's last two frames of the `garbage` fault run: QEMU's socket was reset on exit with
-/// bytes unread; the firmware now exits only after the bridge acknowledges its `E` frame,
+/// `hil`'s measurement) with the background blind suite confined to the last core and this
+/// process (so the step's QEMU, plant program and the bridge threads between them) to the
+/// others (`taskset`, util-linux); every core again for both after it. The lock-step is
+/// latency-bound: its three parties on one core hand each frame over without waking another
+/// core. Measured alone, `cargo xtask hil --check`: 147 s wall, 105 s user + 67 s system on both
+/// cores; 176 s wall, 164 s user + 10 s system under `taskset -c 0` (the 121 723-tick measurement
+/// 76.7 s -> 63.2 s; what it loses is `maglab identify`'s second thread and the builds). Beside
+/// the suite in CI, with only the suite confined, `hil` took 238 s (clean clone of 981782f).
+/// Measured beside the suite on both cores: `hil`'s default run 12.5 s under `nice -n19`, 7.5 s
+/// in the idle class (5 s alone). (Once, in the idle class, the link lost the firmware's last two
+/// frames of the `garbage` fault run: QEMU's socket was reset on exit with bytes unread; the
+/// firmware now exits only after the bridge acknowledges its `E` frame,
 /// `magctl::link::EndAck`.) The suite's threads were counted from every core (`BLIND_THREADS`,
 /// `RAYON_NUM_THREADS`).
 fn with_background_confined(step: impl FnOnce() -> Result<()>) -> Result<()> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let set_cores = |list: String| {
-        let mut guard = BLIND_SUITE.lock().unwrap_or_else(|p| p.into_inner());
-        let Some(bg) = guard.as_mut() else { return };
-        if cores < 2 || !matches!(bg.child.try_wait(), Ok(None)) {
-            return;
-        }
+    let all = format!("0-{}", cores.saturating_sub(1));
+    let set_cores = |pid: u32, list: &str, what: &str| {
         let mut taskset = Command::new("taskset");
         taskset
-            .args(["-a", "-p", "-c", &list, &bg.child.id().to_string()])
+            .args(["-a", "-p", "-c", list, &pid.to_string()])
             .stdout(Stdio::null());
-        // The suite may end between the check and the call; it then needs no cores.
         if let Err(e) = run_checked(taskset) {
-            println!("(the blind suite's cores unchanged: {e:#})");
+            println!("({what}'s cores unchanged: {e:#})");
         }
     };
-    set_cores((cores - 1).to_string());
+    // The suite's process, while it runs (it may end between the check and the call; it then
+    // needs no cores).
+    let suite = || {
+        let mut guard = BLIND_SUITE.lock().unwrap_or_else(|p| p.into_inner());
+        let bg = guard.as_mut()?;
+        matches!(bg.child.try_wait(), Ok(None)).then(|| bg.child.id())
+    };
+    let confined = match suite() {
+        Some(pid) if cores >= 2 => {
+            set_cores(pid, &(cores - 1).to_string(), "the blind suite");
+            set_cores(std::process::id(), &format!("0-{}", cores - 2), "this step");
+            true
+        }
+        _ => false,
+    };
     let result = step();
-    set_cores(format!("0-{}", cores.saturating_sub(1)));
+    if confined {
+        set_cores(std::process::id(), &all, "this step");
+        if let Some(pid) = suite() {
+            set_cores(pid, &all, "the blind suite");
+        }
+    }
     result
 }
 
