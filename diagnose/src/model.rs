@@ -41,6 +41,7 @@
 //! sample `k` acts on a held command (the recording convention of `maglab rig`).
 
 use magctl::preisach::{PreisachMeasure, PreisachState};
+use std::borrow::Cow;
 use std::f64::consts::PI;
 
 /// Staircase capacity of the model's Preisach memory (deep histories such as a chain of
@@ -534,7 +535,7 @@ fn second_order(omega: f64, zeta: f64, delta: f64) -> LinearStep<2> {
 }
 
 /// The mechanical stage (module docs): the displacement the sensor reads at every sample time
-/// (no offset), m.
+/// (no offset), m. The same as [`observe`] of [`track_mech`].
 pub fn run_mech(
     nominal: &Nominal,
     mech: &Mech,
@@ -543,14 +544,70 @@ pub fn run_mech(
     step_s: f64,
     theta0: (f64, f64),
 ) -> Vec<f64> {
+    let track = track_mech(nominal, mech, run, n_samples, step_s, theta0);
+    observe(mech, &track, n_samples, step_s)
+}
+
+/// The observed motion at every substep point of one run of the mechanical stage: the position
+/// and rate of the rod (of the first load mass when there is a load), before the sensor.
+#[derive(Debug, Clone)]
+pub struct MechTrack {
+    /// Substeps per sample.
+    pub substeps: usize,
+    /// Position at every substep point, m.
+    pub pos_m: Vec<f64>,
+    /// Rate at every substep point, m/s.
+    pub rate_m_per_s: Vec<f64>,
+}
+
+impl Mech {
+    /// The parameters [`track_mech`] depends on: the sensor and the channel skew switched off
+    /// (they act on the track afterwards, in [`observe`]). Two parameter sets with the same
+    /// key have the same track.
+    pub fn track_key(&self) -> Mech {
+        Mech {
+            sensor: None,
+            skew_samples: 0.0,
+            ..*self
+        }
+    }
+}
+
+/// The rod and load integrated over the first `n_samples` samples of `run` (the part of
+/// [`run_mech`] before the sensor; it does not depend on the sensor or the skew).
+pub fn track_mech(
+    nominal: &Nominal,
+    mech: &Mech,
+    run: &ElectroRun,
+    n_samples: usize,
+    step_s: f64,
+    theta0: (f64, f64),
+) -> MechTrack {
     // The second load mode's two states exist only when it is switched on (a compile-time
     // size: the one-mode integrator keeps its four states and its arithmetic).
-    let (pos, rate) = if mech.second_load.is_some() {
+    let (pos_m, rate_m_per_s) = if mech.second_load.is_some() {
         mech_states::<6>(nominal, mech, run, n_samples, step_s, theta0)
     } else {
         mech_states::<4>(nominal, mech, run, n_samples, step_s, theta0)
     };
-    observe_with_sensor(mech, pos, rate, n_samples, step_s, run.substeps)
+    MechTrack {
+        substeps: run.substeps,
+        pos_m,
+        rate_m_per_s,
+    }
+}
+
+/// The sensor's reading of `track` at the first `n_samples` sample times (the part of
+/// [`run_mech`] after the rod and load).
+pub fn observe(mech: &Mech, track: &MechTrack, n_samples: usize, step_s: f64) -> Vec<f64> {
+    observe_with_sensor(
+        mech,
+        &track.pos_m,
+        &track.rate_m_per_s,
+        n_samples,
+        step_s,
+        track.substeps,
+    )
 }
 
 /// The rod and load integrated over every substep of `run`: the observed position and rate at
@@ -739,8 +796,8 @@ fn mech_states<const N: usize>(
 /// switched on), delay and the channel skew.
 fn observe_with_sensor(
     mech: &Mech,
-    pos: Vec<f64>,
-    rate: Vec<f64>,
+    pos: &[f64],
+    rate: &[f64],
     n_samples: usize,
     step_s: f64,
     substeps: usize,
@@ -762,9 +819,9 @@ fn observe_with_sensor(
                 o.push(x[0]);
                 orate.push(x[1]);
             }
-            (o, orate)
+            (Cow::Owned(o), Cow::Owned(orate))
         }
-        None => (pos, rate),
+        None => (Cow::Borrowed(pos), Cow::Borrowed(rate)),
     };
     let delay_s = mech.sensor.map_or(0.0, |s| s.2);
     (0..n_samples)
