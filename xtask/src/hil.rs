@@ -169,13 +169,15 @@ struct TickRow {
     command: Option<CommandFrame>,
 }
 
-/// Builds `maglab` and returns its path. In the `test` profile (its simulating crates are
-/// optimized as in `dev`): `cargo xtask test`'s `test` step has built it there for the
-/// workspace tests, so within `cargo xtask test` this only checks it is current (a `dev` build
-/// compiled the numeric crates a second time: 63 s, 113 s of CPU, after a clean `cargo test
-/// --workspace --no-run`; `--profile test`: 0.2 s).
+/// Builds `maglab` and returns its path: as `cargo test --workspace` builds it (the `test`
+/// profile, whose simulating crates are optimized as in `dev`, and the workspace's features), so
+/// that within `cargo xtask test`, whose `test` step has built exactly that, this only checks it
+/// is current. (A `dev` build, or `cargo build --profile test -p maglab`, resolves other
+/// features and compiled `magctl`, `maglab-identify`, `maglab-diagnose` and `maglab` again: on a
+/// clean clone after the `test` step, about 110 s on the one core `hil` keeps.) Alone, the first
+/// `cargo xtask hil` therefore builds every test of the workspace once.
 pub fn maglab(ctx: &Ctx) -> Result<PathBuf> {
-    run_checked(ctx.cargo(&["build", "--profile", "test", "-p", "maglab", "--quiet"]))?;
+    run_checked(ctx.cargo(&["test", "--workspace", "--no-run", "--quiet"]))?;
     let target = std::env::var_os("CARGO_TARGET_DIR")
         .map(PathBuf::from)
         .unwrap_or_else(|| ctx.root.join("target"));
