@@ -312,10 +312,41 @@ impl Fitted {
     }
 }
 
-type Cache = Mutex<Vec<(Electro, Arc<Vec<ElectroRun>>)>>;
+/// The last few results of a computation, by its parameters (shared by the problems of one fit).
+struct Recent<K, V> {
+    capacity: usize,
+    entries: Mutex<Vec<(K, Arc<V>)>>,
+}
+
+impl<K: PartialEq, V> Recent<K, V> {
+    fn new(capacity: usize) -> Self {
+        Recent {
+            capacity,
+            entries: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The value for `key`: kept, else computed by `make` and kept (the oldest dropped).
+    fn get_or_make(&self, key: K, make: impl FnOnce() -> V) -> Arc<V> {
+        let lock = || self.entries.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((_, v)) = lock().iter().find(|(k, _)| *k == key) {
+            return v.clone();
+        }
+        let v = Arc::new(make());
+        let mut entries = lock();
+        if entries.len() >= self.capacity {
+            entries.remove(0);
+        }
+        entries.push((key, v.clone()));
+        v
+    }
+}
+
+/// The electromagnetic runs of the training experiments, by their parameters.
+type Cache = Recent<Electro, Vec<ElectroRun>>;
 /// The mechanical tracks of the training experiments, by the electromagnetic parameters and
 /// [`Mech::track_key`].
-type TrackCache = Mutex<Vec<((Electro, Mech), Arc<Vec<MechTrack>>)>>;
+type TrackCache = Recent<(Electro, Mech), Vec<MechTrack>>;
 
 /// The least-squares problem of one candidate on the training experiments.
 struct Problem<'a> {
@@ -344,41 +375,16 @@ impl Problem<'_> {
     }
 
     fn electro_runs(&self, e: &Electro) -> Arc<Vec<ElectroRun>> {
-        if let Some((_, runs)) = self
-            .cache
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .iter()
-            .find(|(k, _)| k == e)
-        {
-            return runs.clone();
-        }
-        let runs = Arc::new(
+        self.cache.get_or_make(*e, || {
             self.setup
-                .electro_runs(e, self.data, self.training, &self.lengths),
-        );
-        let mut cache = self.cache.lock().unwrap_or_else(|p| p.into_inner());
-        if cache.len() >= 3 {
-            cache.remove(0);
-        }
-        cache.push((*e, runs.clone()));
-        runs
+                .electro_runs(e, self.data, self.training, &self.lengths)
+        })
     }
 
-    /// The tracks of the training experiments for `e` and `m` (cached: the last two).
+    /// The tracks of the training experiments for `e` and `m`.
     fn tracks(&self, e: &Electro, m: &Mech) -> Arc<Vec<MechTrack>> {
-        let key = (*e, m.track_key());
-        if let Some((_, tracks)) = self
-            .tracks
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .iter()
-            .find(|(k, _)| *k == key)
-        {
-            return tracks.clone();
-        }
-        let runs = self.electro_runs(e);
-        let tracks: Arc<Vec<MechTrack>> = Arc::new(
+        self.tracks.get_or_make((*e, m.track_key()), || {
+            let runs = self.electro_runs(e);
             self.training
                 .par_iter()
                 .zip(runs.par_iter())
@@ -388,14 +394,8 @@ impl Problem<'_> {
                     let theta0 = chained_temperature(m, &x.heat_history, self.setup.step_s);
                     track_mech(self.setup.nominal, m, run, len, self.setup.step_s, theta0)
                 })
-                .collect(),
-        );
-        let mut cache = self.tracks.lock().unwrap_or_else(|p| p.into_inner());
-        if cache.len() >= 2 {
-            cache.remove(0);
-        }
-        cache.push((key, tracks.clone()));
-        tracks
+                .collect()
+        })
     }
 
     fn eval(&self, z: &DVector<f64>) -> Option<DVector<f64>> {
@@ -508,8 +508,8 @@ pub fn fit(
         .map(|&k| (data[k].settle + settings.max_fit_samples).min(data[k].current_a.len()))
         .collect();
     let evaluations = Arc::new(AtomicU64::new(0));
-    let cache: Arc<Cache> = Arc::new(Mutex::new(Vec::new()));
-    let tracks: Arc<TrackCache> = Arc::new(Mutex::new(Vec::new()));
+    let cache: Arc<Cache> = Arc::new(Recent::new(3));
+    let tracks: Arc<TrackCache> = Arc::new(Recent::new(2));
     let make_with = |head: Vec<f64>, z: DVector<f64>| Problem {
         setup,
         data,
