@@ -36,8 +36,9 @@
 pub mod actuator;
 pub mod cells;
 pub mod columns;
-pub mod data;
-pub mod dataset_info;
+/// The dataset folder format (`maglab-dataset`), re-exported: `maglab_identify::data` and
+/// `maglab_identify::dataset_info` are its modules.
+pub use maglab_dataset::{data, dataset_info};
 pub mod design;
 pub mod drift;
 pub mod dynamics;

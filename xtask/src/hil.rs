@@ -780,7 +780,7 @@ fn check_record_against_link(record: &crate::record::Record, rows: &[TickRow]) -
 /// experiment (the current the firmware applied and its reading of the tick's sample) and
 /// `dataset.json` (start state `negative-saturation`, the excitation of each file).
 fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path) -> Result<()> {
-    use maglab_identify::dataset_info::{DatasetInfo, FileInfo, StartState};
+    use maglab_dataset::dataset_info::{DatasetInfo, FileInfo, StartState};
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let rate_hz = BAKED_PARAMETERS.control.sample_rate_hz as f64;
     let mut info = DatasetInfo {
@@ -807,7 +807,7 @@ fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path) -> Result<
             y.push(c.desired_m as f64);
         }
         let file = format!("{name}.csv");
-        maglab_identify::data::write_measurement(&dir.join(&file), &t, &i, &y)
+        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         info.files.insert(
             file,

@@ -248,7 +248,7 @@ pub fn parse(lines: &[String]) -> Result<Record> {
 /// Writes the dataset folder: one `t_s,current_a,displacement_m` file per experiment and
 /// `dataset.json` (start state, each file's excitation).
 pub fn write_dataset(record: &Record, dir: &Path) -> Result<()> {
-    use maglab_identify::dataset_info::{DatasetInfo, FileInfo, StartState};
+    use maglab_dataset::dataset_info::{DatasetInfo, FileInfo, StartState};
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let start = StartState::parse(&record.start_state)
         .map_err(|e| anyhow::anyhow!("start state `{}`: {e}", record.start_state))?;
@@ -271,7 +271,7 @@ pub fn write_dataset(record: &Record, dir: &Path) -> Result<()> {
             .map(|s| s.reading_m as f64)
             .collect();
         let file = format!("{}.csv", e.name(k));
-        maglab_identify::data::write_measurement(&dir.join(&file), &t, &i, &y)
+        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         info.files.insert(
             file,

@@ -92,7 +92,8 @@ impl fmt::Display for DataError {
 impl std::error::Error for DataError {}
 
 impl DataError {
-    pub(crate) fn file(path: &Path, reason: impl Into<String>) -> Self {
+    /// An error about the whole file (it cannot be opened, it is empty, ...).
+    pub fn file(path: &Path, reason: impl Into<String>) -> Self {
         DataError {
             path: path.to_path_buf(),
             line: None,
@@ -101,12 +102,8 @@ impl DataError {
         }
     }
 
-    pub(crate) fn at(
-        path: &Path,
-        line: u64,
-        column: Option<&str>,
-        reason: impl Into<String>,
-    ) -> Self {
+    /// An error at a 1-based line of the file, in a named column if there is one.
+    pub fn at(path: &Path, line: u64, column: Option<&str>, reason: impl Into<String>) -> Self {
         DataError {
             path: path.to_path_buf(),
             line: Some(line),
@@ -116,13 +113,8 @@ impl DataError {
     }
 }
 
-/// Parses one field as a finite number.
-pub(crate) fn parse_finite(
-    path: &Path,
-    line: u64,
-    column: &str,
-    text: &str,
-) -> Result<f64, DataError> {
+/// Parses one field as a finite number; the error names the file, line, column and text.
+pub fn parse_finite(path: &Path, line: u64, column: &str, text: &str) -> Result<f64, DataError> {
     let trimmed = text.trim();
     let value: f64 = trimmed.parse().map_err(|_| {
         DataError::at(
@@ -144,11 +136,11 @@ pub(crate) fn parse_finite(
 }
 
 /// A data row: its 1-based line number and its fields.
-pub(crate) type Row = (u64, Vec<String>);
+pub type Row = (u64, Vec<String>);
 
 /// Reads all records of a CSV file with their 1-based line numbers; the first record is the
 /// header. Rows with a different field count than the header are an error.
-pub(crate) fn read_records(path: &Path) -> Result<(Vec<String>, Vec<Row>), DataError> {
+pub fn read_records(path: &Path) -> Result<(Vec<String>, Vec<Row>), DataError> {
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
