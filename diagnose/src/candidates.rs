@@ -92,15 +92,37 @@ impl ParamSpec {
 
     /// Coordinate of `v` (clamped just inside the range).
     pub fn coordinate(&self, v: f64) -> f64 {
+        self.coordinate_within(v, 1e-4)
+    }
+
+    /// Coordinate of `v` as a fit's start: at least [`START_MARGIN`] of the range inside it.
+    ///
+    /// At the end of its range (`s = 1e-4`, `z ≈ ±50`) a parameter has no gradient: the
+    /// sigmoid's slope there is `1/(2(1 + z²)^{3/2}) ≈ 4e-6`, a Jacobian step of 1e-3 in `z`
+    /// moves the value by 1e-8 of its range, and Levenberg-Marquardt never brings it back. Starts
+    /// come from the nuisance estimate (a channel skew at its ±1 sample limit when the file's
+    /// model needs a lag), from refitted constants at the end of their band, from a single
+    /// candidate's optimum pinned at a limit: each would freeze that parameter for the whole fit.
+    /// At `s = 0.02` (`z ≈ ±3.4`) the slope is 200× larger, and a fit that needs the limit runs
+    /// back to it.
+    pub fn start_coordinate(&self, v: f64) -> f64 {
+        self.coordinate_within(v, START_MARGIN)
+    }
+
+    fn coordinate_within(&self, v: f64, margin: f64) -> f64 {
         let s = if self.log {
             (v.max(self.lo).ln() - self.lo.ln()) / (self.hi.ln() - self.lo.ln())
         } else {
             (v - self.lo) / (self.hi - self.lo)
         };
-        let u = 2.0 * s.clamp(1e-4, 1.0 - 1e-4) - 1.0;
+        let u = 2.0 * s.clamp(margin, 1.0 - margin) - 1.0;
         u / (1.0 - u * u).sqrt()
     }
 }
+
+/// How far inside its range a fit's start is put, as a fraction of the range (in the fitted
+/// coordinate): see [`ParamSpec::start_coordinate`].
+pub const START_MARGIN: f64 = 0.02;
 
 /// `(1 + z/√(1 + z²))/2`.
 fn sigmoid(z: f64) -> f64 {

@@ -528,7 +528,7 @@ pub fn fit(
     let to_z = |v: &[f64]| {
         DVector::from_iterator(
             specs.len(),
-            specs.iter().zip(v).map(|(s, &v)| s.coordinate(v)),
+            specs.iter().zip(v).map(|(s, &v)| s.start_coordinate(v)),
         )
     };
     // Evaluate the starts; refine the best (and the second when within 10 % of it: a second
