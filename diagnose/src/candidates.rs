@@ -26,7 +26,9 @@
 //! the algebraic sigmoid `σ(z) = (1 + z/√(1 + z²))/2` (on `ln value` for log-scaled ones), so
 //! Levenberg-Marquardt needs no bounds and a value never leaves its physical range; its tails
 //! are polynomial, so a fit that touches a limit still has a gradient to leave it (`tanh` has
-//! none).
+//! none). That gradient vanishes with the distance to the limit, so a fit never *starts* there:
+//! every start is at least [`START_MARGIN`] of its range inside it
+//! ([`ParamSpec::start_coordinate`]).
 
 use crate::effects::EffectName;
 use crate::model::{Electro, Mech, Nominal};

@@ -15,7 +15,7 @@
 //!      `previous` that fits it best (the memory left outside a periodic loop sets a constant
 //!      offset of `M`, so a wrong start is a systematic error); an experiment that continues a
 //!      quasi-static record (the reversal sweep in front of the sines) starts from the memory
-//!      that record leaves, simulated once ([`lead_in_memory`]), not in every fit;
+//!      that record leaves, simulated once (`lead_in_memory`), not in every fit;
 //!    * the current between samples (held or linear: half a sample of delay apart);
 //!    * the sub-sample skew of the displacement channel against the current channel (within
 //!      ±1 sample; golden-section search);
