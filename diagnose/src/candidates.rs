@@ -101,12 +101,12 @@ impl ParamSpec {
     ///
     /// At the end of its range (`s = 1e-4`, `z ≈ ±50`) a parameter has no gradient: the
     /// sigmoid's slope there is `1/(2(1 + z²)^{3/2}) ≈ 4e-6`, a Jacobian step of 1e-3 in `z`
-    /// moves the value by 1e-8 of its range, and Levenberg-Marquardt never brings it back. Starts
+    /// moves the value by 4e-9 of its range, and Levenberg-Marquardt never brings it back. Starts
     /// come from the nuisance estimate (a channel skew at its ±1 sample limit when the file's
     /// model needs a lag), from refitted constants at the end of their band, from a single
     /// candidate's optimum pinned at a limit: each would freeze that parameter for the whole fit.
-    /// At `s = 0.02` (`z ≈ ±3.4`) the slope is 200× larger, and a fit that needs the limit runs
-    /// back to it.
+    /// At `s = 0.02` (`z ≈ ±3.4`) the slope is 0.011, about 3000× larger, and a fit that needs
+    /// the limit runs back to it (test `a_start_at_a_limit_is_inside_it_and_has_a_gradient`).
     pub fn start_coordinate(&self, v: f64) -> f64 {
         self.coordinate_within(v, START_MARGIN)
     }
@@ -743,6 +743,31 @@ mod tests {
         assert!(mass.pinned(mass.coordinate(10.0)));
         assert!(!mass.pinned(mass.coordinate(0.05)));
         assert!(!mass.pinned(mass.coordinate(0.3)));
+    }
+
+    #[test]
+    fn a_start_at_a_limit_is_inside_it_and_has_a_gradient() {
+        let skew = ParamSpec {
+            name: "channel_skew_samples",
+            lo: -1.0,
+            hi: 1.0,
+            log: false,
+            stage: Stage::Mech,
+            edge: Edge::Both,
+        };
+        let slope = |z: f64| (skew.value(z + 1e-3) - skew.value(z)) / 1e-3;
+        for v in [-1.0, 1.0, 1.5] {
+            let at_limit = skew.coordinate(v);
+            let start = skew.start_coordinate(v);
+            // At the limit a Jacobian step moves the value by ~1e-8 samples; from the start by ~1e-5.
+            assert!(slope(at_limit).abs() < 1e-5, "{v}: {}", slope(at_limit));
+            assert!(slope(start).abs() > 1e-2, "{v}: {}", slope(start));
+            assert!(!skew.pinned(start));
+            let margin = (skew.value(start).abs() - 1.0).abs();
+            assert!((margin - 2.0 * START_MARGIN).abs() < 1e-9, "{v}: {margin}");
+        }
+        // Inside the margin a start is the value itself.
+        assert!((skew.value(skew.start_coordinate(0.3)) - 0.3).abs() < 1e-12);
     }
 
     #[test]
