@@ -31,10 +31,10 @@ fn main() {
     );
     let show = |c: &maglab_diagnose::diagnosis::CandidateResult| {
         println!(
-            "  {:40} train {:.3e} held {:.3e} sys {:.3e} ({:.0}%) ko {:.3e} pinned {:?} worse {}/{} sig {} evals {}\n      {}",
+            "  {:40} train {:.3e} held {:.3e} sys {:.3e} ({:.0}%) ko {:.3e} pinned {:?} at-end {:?} worse {}/{} sig {} evals {}\n      {}",
             c.effect, c.training_rms_m, c.held_out_rms_after_m, c.systematic_after_m,
             100.0 * c.systematic_after_m / c.systematic_before_m.max(1e-300),
-            c.knocked_out_rms_m, c.pinned,
+            c.knocked_out_rms_m, c.pinned, c.constants_at_range_end,
             c.worse_experiments, c.held_out_experiments, c.significant, c.evaluations,
             c.parameters.iter().map(|(k, v)| format!("{k}={v:.4}")).collect::<Vec<_>>().join(" ")
         );

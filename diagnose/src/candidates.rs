@@ -82,6 +82,14 @@ impl ParamSpec {
             || (s > 0.99 && matches!(self.edge, Edge::High | Edge::Both))
     }
 
+    /// The fitted coordinate `z` sits within 1 % of the range at either end, physical limit or
+    /// not: for a refitted constant or the channel skew, the end of the band the file's value
+    /// allows (the fit wanted a value beyond it).
+    pub fn at_range_end(&self, z: f64) -> bool {
+        let s = sigmoid(z);
+        !(0.01..=0.99).contains(&s)
+    }
+
     /// Value at the unbounded coordinate `z`.
     pub fn value(&self, z: f64) -> f64 {
         let s = sigmoid(z);
@@ -768,6 +776,28 @@ mod tests {
         }
         // Inside the margin a start is the value itself.
         assert!((skew.value(skew.start_coordinate(0.3)) - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_value_within_one_percent_of_either_end_is_at_the_range_end() {
+        // A refitted f0 in a ×/÷ 1.06 band (log scale): no physical limit at either end, yet a fit
+        // that ends there wanted a value beyond what the file allows.
+        let f0 = ParamSpec {
+            name: "resonance_hz",
+            lo: 392.0 / 1.06,
+            hi: 392.0 * 1.06,
+            log: true,
+            stage: Stage::Mech,
+            edge: Edge::None,
+        };
+        let at_end = |v: f64| f0.at_range_end(f0.coordinate(v));
+        // 1 % of the log range is a factor of 1.06^0.02 (0.12 %).
+        assert!(at_end(369.85) && at_end(392.0 / 1.06) && at_end(415.5) && at_end(500.0));
+        assert!(!at_end(371.0) && !at_end(392.0) && !at_end(415.0));
+        assert!(
+            !f0.pinned(f0.coordinate(369.85)),
+            "no physical limit: never pinned"
+        );
     }
 
     #[test]

@@ -47,7 +47,10 @@
 //!      energy) — or at most [`WITHIN_NOISE_RATIO`] = 0.5 of it and below [`none_threshold`]
 //!      (what is left is within the noise) — and it makes at most a
 //!      quarter of the held-out experiments worse (RMS up by more than 5 % + 0.1 σ): the
-//!      verdict is the significant candidate with the lowest held-out error, else `unexplained`;
+//!      verdict is the significant candidate with the lowest held-out error, else `unexplained`
+//!      — where another significant one comes within [`EQUAL_HELD_OUT`] (1 %), a tie the data do
+//!      not resolve, the one that needs fewer of the refitted constants and the skew at an end
+//!      of their band (the same rule picks among the pairs of step 8);
 //!    * candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`;
 //!      significant candidates that fit the training experiments as well as a single winner
 //!      (training RMS within [`EQUAL_ON_TRAINING`]) as `equal_on_training`: between them only the
@@ -323,6 +326,10 @@ pub struct CandidateResult {
     pub knocked_out_rms_m: f64,
     /// Effect parameters pinned at a physical limit of their range (an implausible explanation).
     pub pinned: Vec<String>,
+    /// The refitted constants and the channel skew that ended at an end of their band
+    /// ([`crate::fit::Fitted::shared_at_range_end`]): the candidate needed them beyond what the
+    /// parameter file allows. Breaks a tie on the held-out experiments ([`EQUAL_HELD_OUT`]).
+    pub constants_at_range_end: Vec<String>,
     /// Passes the significance criterion.
     pub significant: bool,
     /// Errors per frequency band, every dynamic experiment.
@@ -458,6 +465,15 @@ pub const PROMISING_TRAINING: f64 = 0.5;
 /// an amplifier, a load); where none did, 30 of 37. Within 2 % and 5 % the same split, within
 /// 0.5 % 5 of 9.
 pub const EQUAL_ON_TRAINING: f64 = 1.01;
+
+/// Two fits whose held-out RMS errors are within this factor of each other explain the held-out
+/// experiments equally well: the data do not rank them (on the blind suite such ties were within
+/// 0.3-0.9 %, between lag candidates: a sensor or a load after the magnetostriction). The tie goes
+/// to the fit that needs fewer of its refitted constants and of the channel skew at an end of
+/// their band ([`CandidateResult::constants_at_range_end`]): a fit that stretches `f0` to the
+/// end of the band the file allows, or the skew to its ±1 sample limit, makes up with the nominal
+/// model's constants for what its effect does not explain.
+pub const EQUAL_HELD_OUT: f64 = 1.01;
 
 /// Noise-corrected systematic part of an RMS error.
 pub fn systematic(rms: f64, noise: f64) -> f64 {
@@ -812,7 +828,7 @@ pub fn diagnose(
             (scorer.result(&f, &s, &base), f, s)
         })
         .collect();
-    sort_by_held_out(&mut ranked);
+    sort_by_held_out(&mut ranked, |r| r.significant);
     progress(1);
     let gap0 = refit_result.systematic_before_m;
     let threshold = none_threshold(noise_m, range);
@@ -934,7 +950,7 @@ pub fn diagnose(
         };
         let mut pairs: Vec<(CandidateResult, PlanFit, Scored)> =
             combos.par_iter().filter_map(|&c| fit_pair(c)).collect();
-        sort_by_held_out(&mut pairs);
+        sort_by_held_out(&mut pairs, |_| true);
         let singles: Vec<&PlanFit> = ranked.iter().map(|r| &r.1).collect();
         // The best pair is named when it leaves at most half of what the best single candidate
         // and the refitted nominal model leave, pins nothing, makes at most a quarter of the
@@ -1033,7 +1049,7 @@ pub fn diagnose(
                 // The first pair's refits stay the ones offered to the single candidates.
                 pair_winner = accept(&extended).0;
                 pairs.push(extended);
-                sort_by_held_out(&mut pairs);
+                sort_by_held_out(&mut pairs, |_| true);
             }
         }
         // One effect before two (module docs, step 8): when the named pair contains an effect
@@ -1099,7 +1115,7 @@ pub fn diagnose(
                     Some((scorer.result(&g, &sc, &base_scored), g, sc))
                 })
                 .collect();
-            sort_by_held_out(&mut tried);
+            sort_by_held_out(&mut tried, |_| true);
             let best = tried.into_iter().next()?;
             let plausible = best.0.pinned.is_empty()
                 && best.0.systematic_after_m <= pair.systematic_after_m + floor
@@ -1131,7 +1147,7 @@ pub fn diagnose(
             Some(Parsimony::Richer(best, effect)) => {
                 pair_winner = Some((best.0.clone(), best.2.clone(), vec![effect]));
                 pairs.push(*best);
-                sort_by_held_out(&mut pairs);
+                sort_by_held_out(&mut pairs, |_| true);
             }
             Some(Parsimony::Library(refit)) => {
                 // Taken up by the single candidates below, as a knock-out refit is.
@@ -1164,7 +1180,7 @@ pub fn diagnose(
             }
         }
         if replaced {
-            sort_by_held_out(&mut ranked);
+            sort_by_held_out(&mut ranked, |r| r.significant);
             winner = ranked.iter().position(|r| r.0.significant);
         }
     }
@@ -1662,12 +1678,39 @@ fn equal_on_training<'a>(
         .collect()
 }
 
-/// Orders fitted candidates by their held-out RMS error, best first.
-fn sort_by_held_out(fits: &mut [(CandidateResult, PlanFit, Scored)]) {
+/// Orders fitted candidates by their held-out RMS error, best first; then, among the `eligible`
+/// fits whose held-out error is within [`EQUAL_HELD_OUT`] of the best eligible one's (a tie the
+/// data do not resolve), the one with the fewest constants at an end of their band goes to where
+/// the best eligible one was (on equal counts the lower held-out error). Nothing else moves.
+fn sort_by_held_out(
+    fits: &mut [(CandidateResult, PlanFit, Scored)],
+    eligible: impl Fn(&CandidateResult) -> bool,
+) {
     fits.sort_by(|a, b| {
         a.0.held_out_rms_after_m
             .total_cmp(&b.0.held_out_rms_after_m)
     });
+    let results: Vec<&CandidateResult> = fits.iter().map(|f| &f.0).collect();
+    if let Some((first, preferred)) = held_out_tie_break(&results, eligible) {
+        fits[first..=preferred].rotate_right(1);
+    }
+}
+
+/// For `results` ordered by held-out error: `(the best eligible, the one preferred to it)` —
+/// among the eligible results within [`EQUAL_HELD_OUT`] of the best eligible one's held-out
+/// error, the one with the fewest [`CandidateResult::constants_at_range_end`] (the earlier on
+/// equal counts).
+fn held_out_tie_break(
+    results: &[&CandidateResult],
+    eligible: impl Fn(&CandidateResult) -> bool,
+) -> Option<(usize, usize)> {
+    let first = results.iter().position(|r| eligible(r))?;
+    let tie = EQUAL_HELD_OUT * results[first].held_out_rms_after_m;
+    let preferred = (first..results.len())
+        .take_while(|&i| results[i].held_out_rms_after_m <= tie)
+        .filter(|&i| eligible(results[i]))
+        .min_by_key(|&i| (results[i].constants_at_range_end.len(), i))?;
+    Some((first, preferred))
 }
 
 struct Scorer<'a> {
@@ -1854,6 +1897,7 @@ impl Scorer<'_> {
             held_out_experiments: self.held_out.len(),
             knocked_out_rms_m: knocked_out,
             pinned,
+            constants_at_range_end: f.shared_at_range_end(),
             significant,
             per_band,
             evaluations: f.evaluations,
@@ -2116,10 +2160,40 @@ mod tests {
             held_out_experiments: 4,
             knocked_out_rms_m: 1e-6,
             pinned: Vec::new(),
+            constants_at_range_end: Vec::new(),
             significant,
             per_band: Vec::new(),
             evaluations: 0,
         }
+    }
+
+    #[test]
+    fn a_held_out_tie_goes_to_the_fit_with_fewer_constants_at_a_band_end() {
+        // Blind suite seed 8 case 21 (a sensor lag): the load fit 0.3 % better held out, with
+        // f0 at the end of its band; the sensor fit with none there.
+        let with = |effect: &str, held_out_m: f64, significant: bool, at_end: &[&str]| {
+            let mut c = candidate(effect, 1e-7, significant);
+            c.held_out_rms_after_m = held_out_m;
+            c.constants_at_range_end = at_end.iter().map(|s| s.to_string()).collect();
+            c
+        };
+        let load = with("mechanical_load", 1.174e-7, true, &["resonance_hz"]);
+        let sensor = with("sensor_dynamics", 1.177e-7, true, &[]);
+        let amplifier = with("amplifier_bandwidth", 1.471e-7, true, &[]);
+        let unfit = with("delta_e_effect", 1.0e-7, false, &[]);
+        let significant = |r: &CandidateResult| r.significant;
+        // The tie is broken for the sensor; the ineligible front entry stays where it is.
+        let order = [&unfit, &load, &sensor, &amplifier];
+        assert_eq!(held_out_tie_break(&order, significant), Some((1, 2)));
+        // Outside 1 % there is no tie: the amplifier, with nothing at an end, does not move up.
+        let order = [&load, &amplifier];
+        assert_eq!(held_out_tie_break(&order, significant), Some((0, 0)));
+        // Equal counts keep the held-out order.
+        let sensor_at_end = with("sensor_dynamics", 1.177e-7, true, &["resonance_hz"]);
+        let order = [&load, &sensor_at_end];
+        assert_eq!(held_out_tie_break(&order, significant), Some((0, 0)));
+        // Nothing eligible: nothing to break.
+        assert_eq!(held_out_tie_break(&[&unfit], significant), None);
     }
 
     #[test]

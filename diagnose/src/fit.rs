@@ -258,6 +258,19 @@ impl Fitted {
             .collect()
     }
 
+    /// The shared parameters (the refitted `R_eddy`, `ξ`, `f0` and the channel skew) that ended
+    /// within 1 % of an end of their band ([`ParamSpec::at_range_end`]), named as in
+    /// [`Fitted::report_names`].
+    pub fn shared_at_range_end(&self) -> Vec<String> {
+        self.report_names()
+            .into_iter()
+            .zip(self.specs.iter().zip(&self.values))
+            .take(COMMON_PARAMETER_COUNT)
+            .filter(|(_, (s, &v))| s.at_range_end(s.coordinate(v)))
+            .map(|(name, _)| name)
+            .collect()
+    }
+
     /// The same fit with effect `drop` switched off (every other value unchanged).
     pub fn without_effect(&self, drop: usize) -> Fitted {
         let mut effects = Vec::new();

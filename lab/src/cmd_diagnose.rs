@@ -180,6 +180,42 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
             d.equal_on_training.join(", ")
         );
     }
+    // A tie on the held-out experiments, broken by the constants at an end of their band.
+    if let Some(winner) = d.ranking.iter().find(|c| c.effect == d.verdict) {
+        let tied: Vec<String> = d
+            .ranking
+            .iter()
+            .filter(|c| {
+                c.effect != winner.effect
+                    && c.significant
+                    && c.held_out_rms_after_m
+                        <= maglab_diagnose::diagnosis::EQUAL_HELD_OUT * winner.held_out_rms_after_m
+                    && winner.held_out_rms_after_m
+                        <= maglab_diagnose::diagnosis::EQUAL_HELD_OUT * c.held_out_rms_after_m
+            })
+            .map(|c| {
+                format!(
+                    "{} ({} µm; at a band end: [{}])",
+                    c.effect,
+                    um(c.held_out_rms_after_m),
+                    c.constants_at_range_end.join(", ")
+                )
+            })
+            .collect();
+        if !tied.is_empty() {
+            let _ = writeln!(
+                s,
+                "Tied on the held-out experiments (within {:.0} %): {} against {} ({} µm; at a \
+                 band end: [{}]). The data do not rank them; the verdict goes to the fit that \
+                 needs fewer of R_eddy, xi, f0 and the channel skew at an end of their band.\n",
+                100.0 * (maglab_diagnose::diagnosis::EQUAL_HELD_OUT - 1.0),
+                winner.effect,
+                tied.join(", "),
+                um(winner.held_out_rms_after_m),
+                winner.constants_at_range_end.join(", ")
+            );
+        }
+    }
     let _ = writeln!(s, "Criterion: {}.\n", d.criterion);
     let _ = writeln!(
         s,
@@ -226,7 +262,7 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
     let _ = writeln!(s, "## Candidates (held-out experiments)\n");
     let _ = writeln!(
         s,
-        "| rank | effect | held-out RMS, refitted nominal (µm) | with the effect (µm) | effect switched off (µm) | reduction | worse | pinned | significant | fitted parameters |\n|---|---|---|---|---|---|---|---|---|---|"
+        "| rank | effect | held-out RMS, refitted nominal (µm) | with the effect (µm) | effect switched off (µm) | reduction | worse | pinned | at a band end | significant | fitted parameters |\n|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for (k, c) in d.ranking.iter().enumerate() {
         let params: Vec<String> = c
@@ -236,7 +272,7 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {:.2}x | {}/{} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {:.2}x | {}/{} | {} | {} | {} | {} |",
             k + 1,
             c.effect,
             um(c.held_out_rms_before_m),
@@ -246,6 +282,7 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
             c.worse_experiments,
             c.held_out_experiments,
             c.pinned.join(", "),
+            c.constants_at_range_end.join(", "),
             if c.significant { "yes" } else { "no" },
             params.join(", ")
         );
@@ -258,11 +295,12 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
         for c in &d.second_stage {
             let _ = writeln!(
                 s,
-                "- {}: held-out RMS {} µm (systematic {} µm), pinned [{}]",
+                "- {}: held-out RMS {} µm (systematic {} µm), pinned [{}], at a band end [{}]",
                 c.effect,
                 um(c.held_out_rms_after_m),
                 um(c.systematic_after_m),
-                c.pinned.join(", ")
+                c.pinned.join(", "),
+                c.constants_at_range_end.join(", ")
             );
         }
     }
