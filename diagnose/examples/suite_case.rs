@@ -62,4 +62,5 @@ fn main() {
         show(c);
     }
     println!("additional {:?}", d.additional_effects);
+    println!("held-out tie {:?}", d.held_out_tie);
 }

@@ -50,7 +50,8 @@
 //!      verdict is the significant candidate with the lowest held-out error, else `unexplained`
 //!      — where another significant one comes within [`EQUAL_HELD_OUT`] (1 %), a tie the data do
 //!      not resolve, the one that needs fewer of the refitted constants and the skew at an end
-//!      of their band (the same rule picks among the pairs of step 8);
+//!      of their band (the same rule picks among the pairs of step 8; the tie the verdict's fit
+//!      was in is recorded, [`Diagnosis::held_out_tie`]);
 //!    * candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`;
 //!      significant candidates that fit the training experiments as well as a single winner
 //!      (training RMS within [`EQUAL_ON_TRAINING`]) as `equal_on_training`: between them only the
@@ -338,6 +339,28 @@ pub struct CandidateResult {
     pub evaluations: u64,
 }
 
+/// A tie on the held-out experiments ([`EQUAL_HELD_OUT`]) among the fits that decided the
+/// verdict (the significant single candidates, or the pairs of step 8), broken by the constants
+/// at an end of their band (module docs, step 7).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct HeldOutTie {
+    /// The fit the tie went to: the verdict's.
+    pub preferred: String,
+    /// Every fit in the tie, the preferred one included, in held-out order.
+    pub tied: Vec<TiedFit>,
+}
+
+/// One fit of a [`HeldOutTie`].
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct TiedFit {
+    /// Effect name(s).
+    pub effect: String,
+    /// Held-out RMS, m.
+    pub held_out_rms_after_m: f64,
+    /// As in [`CandidateResult::constants_at_range_end`].
+    pub constants_at_range_end: Vec<String>,
+}
+
 /// The machine-readable diagnosis (`diagnosis.json`).
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Diagnosis {
@@ -351,6 +374,9 @@ pub struct Diagnosis {
     /// single winner's: the training experiments cannot tell them from the verdict, only the
     /// held-out ones rank them.
     pub equal_on_training: Vec<String>,
+    /// The tie on the held-out experiments that the verdict's fit was in (none when its
+    /// held-out error was more than [`EQUAL_HELD_OUT`] from every other eligible fit's).
+    pub held_out_tie: Option<HeldOutTie>,
     /// Further effects found by the second stage.
     pub additional_effects: Vec<String>,
     /// The second stage: every other candidate refitted on top of the winner (empty when it did
@@ -828,7 +854,7 @@ pub fn diagnose(
             (scorer.result(&f, &s, &base), f, s)
         })
         .collect();
-    sort_by_held_out(&mut ranked, |r| r.significant);
+    let mut singles_tie = sort_by_held_out(&mut ranked, |r| r.significant);
     progress(1);
     let gap0 = refit_result.systematic_before_m;
     let threshold = none_threshold(noise_m, range);
@@ -864,6 +890,7 @@ pub fn diagnose(
         }
     };
     let mut pair_winner: Option<(CandidateResult, Scored, Vec<EffectName>)> = None;
+    let mut pairs_tie: Option<HeldOutTie> = None;
     let mut single_refits: Vec<PlanFit> = Vec::new();
     if gap0 > floor && run_pairs {
         let mut tops: Vec<usize> = (0..ranked.len())
@@ -950,7 +977,7 @@ pub fn diagnose(
         };
         let mut pairs: Vec<(CandidateResult, PlanFit, Scored)> =
             combos.par_iter().filter_map(|&c| fit_pair(c)).collect();
-        sort_by_held_out(&mut pairs, |_| true);
+        pairs_tie = sort_by_held_out(&mut pairs, |_| true);
         let singles: Vec<&PlanFit> = ranked.iter().map(|r| &r.1).collect();
         // The best pair is named when it leaves at most half of what the best single candidate
         // and the refitted nominal model leave, pins nothing, makes at most a quarter of the
@@ -1049,7 +1076,7 @@ pub fn diagnose(
                 // The first pair's refits stay the ones offered to the single candidates.
                 pair_winner = accept(&extended).0;
                 pairs.push(extended);
-                sort_by_held_out(&mut pairs, |_| true);
+                pairs_tie = sort_by_held_out(&mut pairs, |_| true);
             }
         }
         // One effect before two (module docs, step 8): when the named pair contains an effect
@@ -1147,7 +1174,7 @@ pub fn diagnose(
             Some(Parsimony::Richer(best, effect)) => {
                 pair_winner = Some((best.0.clone(), best.2.clone(), vec![effect]));
                 pairs.push(*best);
-                sort_by_held_out(&mut pairs, |_| true);
+                pairs_tie = sort_by_held_out(&mut pairs, |_| true);
             }
             Some(Parsimony::Library(refit)) => {
                 // Taken up by the single candidates below, as a knock-out refit is.
@@ -1180,7 +1207,7 @@ pub fn diagnose(
             }
         }
         if replaced {
-            sort_by_held_out(&mut ranked, |r| r.significant);
+            singles_tie = sort_by_held_out(&mut ranked, |r| r.significant);
             winner = ranked.iter().position(|r| r.0.significant);
         }
     }
@@ -1257,6 +1284,15 @@ pub fn diagnose(
             base.offset_preds(),
         )
     };
+    // The tie the verdict's fit was in, if any: recorded where it was broken (sort_by_held_out).
+    let held_out_tie = if verdict == "none" || verdict == "unexplained" {
+        None
+    } else if let Some((pair, _, _)) = &pair_winner {
+        pairs_tie.filter(|t| t.preferred == pair.effect)
+    } else {
+        let named = winner.map(|w| ranked[w].0.effect.as_str());
+        singles_tie.filter(|t| Some(t.preferred.as_str()) == named)
+    };
     // Effects the identification found in the data and put into the file (module docs): named
     // with the diagnosis's own, first when the diagnosis names none.
     let effects_in_parameter_file = effects_identified_into(params);
@@ -1313,6 +1349,7 @@ pub fn diagnose(
             verdict_reason: reason,
             ambiguous_with,
             equal_on_training,
+            held_out_tie,
             additional_effects,
             second_stage,
             criterion: CRITERION.to_string(),
@@ -1682,35 +1719,67 @@ fn equal_on_training<'a>(
 /// fits whose held-out error is within [`EQUAL_HELD_OUT`] of the best eligible one's (a tie the
 /// data do not resolve), the one with the fewest constants at an end of their band goes to where
 /// the best eligible one was (on equal counts the lower held-out error). Nothing else moves.
+/// Returns the tie, when two or more eligible fits were in it.
 fn sort_by_held_out(
     fits: &mut [(CandidateResult, PlanFit, Scored)],
     eligible: impl Fn(&CandidateResult) -> bool,
-) {
+) -> Option<HeldOutTie> {
     fits.sort_by(|a, b| {
         a.0.held_out_rms_after_m
             .total_cmp(&b.0.held_out_rms_after_m)
     });
     let results: Vec<&CandidateResult> = fits.iter().map(|f| &f.0).collect();
-    if let Some((first, preferred)) = held_out_tie_break(&results, eligible) {
-        fits[first..=preferred].rotate_right(1);
-    }
+    let tie = held_out_tie_break(&results, eligible)?;
+    let record = (tie.tied.len() > 1).then(|| HeldOutTie {
+        preferred: results[tie.preferred].effect.clone(),
+        tied: tie
+            .tied
+            .iter()
+            .map(|&i| TiedFit {
+                effect: results[i].effect.clone(),
+                held_out_rms_after_m: results[i].held_out_rms_after_m,
+                constants_at_range_end: results[i].constants_at_range_end.clone(),
+            })
+            .collect(),
+    });
+    fits[tie.first..=tie.preferred].rotate_right(1);
+    record
 }
 
-/// For `results` ordered by held-out error: `(the best eligible, the one preferred to it)` —
+/// The outcome of [`held_out_tie_break`], as indices into the ordered results.
+#[derive(Debug, PartialEq)]
+struct TieIndices {
+    /// The best eligible result.
+    first: usize,
+    /// The one preferred to it (`first` when nothing was preferred).
+    preferred: usize,
+    /// The eligible results within [`EQUAL_HELD_OUT`] of `first`'s held-out error, `first`
+    /// included, in held-out order.
+    tied: Vec<usize>,
+}
+
+/// For `results` ordered by held-out error: the best eligible one, the one preferred to it —
 /// among the eligible results within [`EQUAL_HELD_OUT`] of the best eligible one's held-out
 /// error, the one with the fewest [`CandidateResult::constants_at_range_end`] (the earlier on
-/// equal counts).
+/// equal counts) — and those tied.
 fn held_out_tie_break(
     results: &[&CandidateResult],
     eligible: impl Fn(&CandidateResult) -> bool,
-) -> Option<(usize, usize)> {
+) -> Option<TieIndices> {
     let first = results.iter().position(|r| eligible(r))?;
-    let tie = EQUAL_HELD_OUT * results[first].held_out_rms_after_m;
-    let preferred = (first..results.len())
-        .take_while(|&i| results[i].held_out_rms_after_m <= tie)
+    let limit = EQUAL_HELD_OUT * results[first].held_out_rms_after_m;
+    let tied: Vec<usize> = (first..results.len())
+        .take_while(|&i| results[i].held_out_rms_after_m <= limit)
         .filter(|&i| eligible(results[i]))
-        .min_by_key(|&i| (results[i].constants_at_range_end.len(), i))?;
-    Some((first, preferred))
+        .collect();
+    let preferred = *tied
+        .iter()
+        .min_by_key(|&&i| (results[i].constants_at_range_end.len(), i))?;
+    Some(TieIndices {
+        first,
+        preferred,
+        tied,
+    })
 }
 
 struct Scorer<'a> {
@@ -2182,16 +2251,24 @@ mod tests {
         let amplifier = with("amplifier_bandwidth", 1.471e-7, true, &[]);
         let unfit = with("delta_e_effect", 1.0e-7, false, &[]);
         let significant = |r: &CandidateResult| r.significant;
-        // The tie is broken for the sensor; the ineligible front entry stays where it is.
+        let tie = |first, preferred, tied: &[usize]| {
+            Some(TieIndices {
+                first,
+                preferred,
+                tied: tied.to_vec(),
+            })
+        };
+        // The tie is broken for the sensor; the ineligible front entry stays where it is and is
+        // not in the tie.
         let order = [&unfit, &load, &sensor, &amplifier];
-        assert_eq!(held_out_tie_break(&order, significant), Some((1, 2)));
+        assert_eq!(held_out_tie_break(&order, significant), tie(1, 2, &[1, 2]));
         // Outside 1 % there is no tie: the amplifier, with nothing at an end, does not move up.
         let order = [&load, &amplifier];
-        assert_eq!(held_out_tie_break(&order, significant), Some((0, 0)));
+        assert_eq!(held_out_tie_break(&order, significant), tie(0, 0, &[0]));
         // Equal counts keep the held-out order.
         let sensor_at_end = with("sensor_dynamics", 1.177e-7, true, &["resonance_hz"]);
         let order = [&load, &sensor_at_end];
-        assert_eq!(held_out_tie_break(&order, significant), Some((0, 0)));
+        assert_eq!(held_out_tie_break(&order, significant), tie(0, 0, &[0, 1]));
         // Nothing eligible: nothing to break.
         assert_eq!(held_out_tie_break(&[&unfit], significant), None);
     }

@@ -249,25 +249,28 @@ impl Fitted {
     /// The effect parameters pinned at a physical limit of their range
     /// ([`ParamSpec::pinned`]), named as in [`Fitted::report_names`].
     pub fn pinned(&self) -> Vec<String> {
-        self.report_names()
-            .into_iter()
-            .zip(self.specs.iter().zip(&self.values))
-            .skip(COMMON_PARAMETER_COUNT)
-            .filter(|(_, (s, &v))| s.pinned(s.coordinate(v)))
-            .map(|(name, _)| name)
-            .collect()
+        self.names_where(COMMON_PARAMETER_COUNT..self.specs.len(), ParamSpec::pinned)
     }
 
     /// The shared parameters (the refitted `R_eddy`, `ξ`, `f0` and the channel skew) that ended
     /// within 1 % of an end of their band ([`ParamSpec::at_range_end`]), named as in
     /// [`Fitted::report_names`].
     pub fn shared_at_range_end(&self) -> Vec<String> {
+        self.names_where(0..COMMON_PARAMETER_COUNT, ParamSpec::at_range_end)
+    }
+
+    /// The report names of the parameters at `indices` whose coordinate satisfies `test`.
+    fn names_where(
+        &self,
+        indices: std::ops::Range<usize>,
+        test: impl Fn(&ParamSpec, f64) -> bool,
+    ) -> Vec<String> {
         self.report_names()
             .into_iter()
             .zip(self.specs.iter().zip(&self.values))
-            .take(COMMON_PARAMETER_COUNT)
-            .filter(|(_, (s, &v))| s.at_range_end(s.coordinate(v)))
-            .map(|(name, _)| name)
+            .enumerate()
+            .filter(|(i, (_, (s, &v)))| indices.contains(i) && test(s, s.coordinate(v)))
+            .map(|(_, (name, _))| name)
             .collect()
     }
 

@@ -180,41 +180,33 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
             d.equal_on_training.join(", ")
         );
     }
-    // A tie on the held-out experiments, broken by the constants at an end of their band.
-    if let Some(winner) = d.ranking.iter().find(|c| c.effect == d.verdict) {
-        let tied: Vec<String> = d
-            .ranking
+    // A tie on the held-out experiments, broken by the constants at an end of their band (the
+    // library records it: Diagnosis::held_out_tie).
+    if let Some(tie) = &d.held_out_tie {
+        let fit = |f: &maglab_diagnose::diagnosis::TiedFit| {
+            format!(
+                "{} ({} µm; at a band end: [{}])",
+                f.effect,
+                um(f.held_out_rms_after_m),
+                f.constants_at_range_end.join(", ")
+            )
+        };
+        let preferred = tie.tied.iter().find(|f| f.effect == tie.preferred);
+        let others: Vec<String> = tie
+            .tied
             .iter()
-            .filter(|c| {
-                c.effect != winner.effect
-                    && c.significant
-                    && c.held_out_rms_after_m
-                        <= maglab_diagnose::diagnosis::EQUAL_HELD_OUT * winner.held_out_rms_after_m
-                    && winner.held_out_rms_after_m
-                        <= maglab_diagnose::diagnosis::EQUAL_HELD_OUT * c.held_out_rms_after_m
-            })
-            .map(|c| {
-                format!(
-                    "{} ({} µm; at a band end: [{}])",
-                    c.effect,
-                    um(c.held_out_rms_after_m),
-                    c.constants_at_range_end.join(", ")
-                )
-            })
+            .filter(|f| f.effect != tie.preferred)
+            .map(fit)
             .collect();
-        if !tied.is_empty() {
-            let _ = writeln!(
-                s,
-                "Tied on the held-out experiments (within {:.0} %): {} against {} ({} µm; at a \
-                 band end: [{}]). The data do not rank them; the verdict goes to the fit that \
-                 needs fewer of R_eddy, xi, f0 and the channel skew at an end of their band.\n",
-                100.0 * (maglab_diagnose::diagnosis::EQUAL_HELD_OUT - 1.0),
-                winner.effect,
-                tied.join(", "),
-                um(winner.held_out_rms_after_m),
-                winner.constants_at_range_end.join(", ")
-            );
-        }
+        let _ = writeln!(
+            s,
+            "Tied on the held-out experiments (within {:.0} %): {} against {}. The data do not \
+             rank them; the verdict goes to the fit that needs fewer of R_eddy, xi, f0 and the \
+             channel skew at an end of their band.\n",
+            100.0 * (maglab_diagnose::diagnosis::EQUAL_HELD_OUT - 1.0),
+            preferred.map_or_else(|| tie.preferred.clone(), fit),
+            others.join(", "),
+        );
     }
     let _ = writeln!(s, "Criterion: {}.\n", d.criterion);
     let _ = writeln!(
