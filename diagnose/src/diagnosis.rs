@@ -344,9 +344,8 @@ pub struct CandidateResult {
 /// at an end of their band (module docs, step 7).
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct HeldOutTie {
-    /// The fit the tie went to: the verdict's.
-    pub preferred: String,
-    /// Every fit in the tie, the preferred one included, in held-out order.
+    /// Every fit in the tie: first the one it went to (the verdict's), then the others in
+    /// held-out order.
     pub tied: Vec<TiedFit>,
 }
 
@@ -1288,10 +1287,10 @@ pub fn diagnose(
     let held_out_tie = if verdict == "none" || verdict == "unexplained" {
         None
     } else if let Some((pair, _, _)) = &pair_winner {
-        pairs_tie.filter(|t| t.preferred == pair.effect)
+        pairs_tie.filter(|t| t.tied[0].effect == pair.effect)
     } else {
         let named = winner.map(|w| ranked[w].0.effect.as_str());
-        singles_tie.filter(|t| Some(t.preferred.as_str()) == named)
+        singles_tie.filter(|t| Some(t.tied[0].effect.as_str()) == named)
     };
     // Effects the identification found in the data and put into the file (module docs): named
     // with the diagnosis's own, first when the diagnosis names none.
@@ -1730,31 +1729,28 @@ fn sort_by_held_out(
     });
     let results: Vec<&CandidateResult> = fits.iter().map(|f| &f.0).collect();
     let tie = held_out_tie_break(&results, eligible)?;
+    let first = tie.tied[0];
     let record = (tie.tied.len() > 1).then(|| HeldOutTie {
-        preferred: results[tie.preferred].effect.clone(),
-        tied: tie
-            .tied
-            .iter()
-            .map(|&i| TiedFit {
+        tied: std::iter::once(tie.preferred)
+            .chain(tie.tied.iter().copied().filter(|&i| i != tie.preferred))
+            .map(|i| TiedFit {
                 effect: results[i].effect.clone(),
                 held_out_rms_after_m: results[i].held_out_rms_after_m,
                 constants_at_range_end: results[i].constants_at_range_end.clone(),
             })
             .collect(),
     });
-    fits[tie.first..=tie.preferred].rotate_right(1);
+    fits[first..=tie.preferred].rotate_right(1);
     record
 }
 
 /// The outcome of [`held_out_tie_break`], as indices into the ordered results.
 #[derive(Debug, PartialEq)]
 struct TieIndices {
-    /// The best eligible result.
-    first: usize,
-    /// The one preferred to it (`first` when nothing was preferred).
+    /// The one preferred (the best eligible one, `tied[0]`, when nothing was preferred to it).
     preferred: usize,
-    /// The eligible results within [`EQUAL_HELD_OUT`] of `first`'s held-out error, `first`
-    /// included, in held-out order.
+    /// The eligible results within [`EQUAL_HELD_OUT`] of the best eligible one's held-out
+    /// error, it first, in held-out order.
     tied: Vec<usize>,
 }
 
@@ -1775,11 +1771,7 @@ fn held_out_tie_break(
     let preferred = *tied
         .iter()
         .min_by_key(|&&i| (results[i].constants_at_range_end.len(), i))?;
-    Some(TieIndices {
-        first,
-        preferred,
-        tied,
-    })
+    Some(TieIndices { preferred, tied })
 }
 
 struct Scorer<'a> {
@@ -2251,9 +2243,8 @@ mod tests {
         let amplifier = with("amplifier_bandwidth", 1.471e-7, true, &[]);
         let unfit = with("delta_e_effect", 1.0e-7, false, &[]);
         let significant = |r: &CandidateResult| r.significant;
-        let tie = |first, preferred, tied: &[usize]| {
+        let tie = |preferred, tied: &[usize]| {
             Some(TieIndices {
-                first,
                 preferred,
                 tied: tied.to_vec(),
             })
@@ -2261,14 +2252,14 @@ mod tests {
         // The tie is broken for the sensor; the ineligible front entry stays where it is and is
         // not in the tie.
         let order = [&unfit, &load, &sensor, &amplifier];
-        assert_eq!(held_out_tie_break(&order, significant), tie(1, 2, &[1, 2]));
+        assert_eq!(held_out_tie_break(&order, significant), tie(2, &[1, 2]));
         // Outside 1 % there is no tie: the amplifier, with nothing at an end, does not move up.
         let order = [&load, &amplifier];
-        assert_eq!(held_out_tie_break(&order, significant), tie(0, 0, &[0]));
+        assert_eq!(held_out_tie_break(&order, significant), tie(0, &[0]));
         // Equal counts keep the held-out order.
         let sensor_at_end = with("sensor_dynamics", 1.177e-7, true, &["resonance_hz"]);
         let order = [&load, &sensor_at_end];
-        assert_eq!(held_out_tie_break(&order, significant), tie(0, 0, &[0, 1]));
+        assert_eq!(held_out_tie_break(&order, significant), tie(0, &[0, 1]));
         // Nothing eligible: nothing to break.
         assert_eq!(held_out_tie_break(&[&unfit], significant), None);
     }

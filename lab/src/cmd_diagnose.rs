@@ -191,20 +191,14 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
                 f.constants_at_range_end.join(", ")
             )
         };
-        let preferred = tie.tied.iter().find(|f| f.effect == tie.preferred);
-        let others: Vec<String> = tie
-            .tied
-            .iter()
-            .filter(|f| f.effect != tie.preferred)
-            .map(fit)
-            .collect();
+        let others: Vec<String> = tie.tied[1..].iter().map(fit).collect();
         let _ = writeln!(
             s,
             "Tied on the held-out experiments (within {:.0} %): {} against {}. The data do not \
              rank them; the verdict goes to the fit that needs fewer of R_eddy, xi, f0 and the \
              channel skew at an end of their band.\n",
             100.0 * (maglab_diagnose::diagnosis::EQUAL_HELD_OUT - 1.0),
-            preferred.map_or_else(|| tie.preferred.clone(), fit),
+            fit(&tie.tied[0]),
             others.join(", "),
         );
     }
