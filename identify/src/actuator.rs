@@ -41,6 +41,30 @@ pub struct IdentifyOptions {
     /// `[R_eddy Ω, ξ, f0 Hz]` for the first-order lag corrections of a finite-rate record
     /// ([`LagCorrection`]); `None`: no correction (the static model (6) as it stands).
     pub lag_correction: Option<[f64; 3]>,
+    /// Where the current is read for each displacement sample, in samples after the current's
+    /// own sample time: the channel skew (the displacement read that much later), less half a
+    /// sample when the current is held between samples (a held current is the linear one half
+    /// a sample late). 0: both channels sampled at once, the current linear between samples.
+    /// The dynamic fit estimates both nuisances on the sines (`maglab_diagnose::identification`);
+    /// the sweep's masses must see the same timing as the model they go into, else the few
+    /// tens of µs go into the loops' width, and the minor loops the sines run on come out wrong.
+    pub current_shift_samples: f64,
+}
+
+/// `x` read `shift` samples later: linear between samples, held at the ends.
+pub fn shifted(x: &[f64], shift: f64) -> Vec<f64> {
+    let n = x.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    (0..n)
+        .map(|k| {
+            let t = (k as f64 + shift).clamp(0.0, (n - 1) as f64);
+            let i = (t.floor() as usize).min(n - 1);
+            let j = (i + 1).min(n - 1);
+            x[i] + (t - i as f64) * (x[j] - x[i])
+        })
+        .collect()
 }
 
 /// Per-file diagnostics.
@@ -293,11 +317,12 @@ pub fn identify(
     let mut choices = Vec::new();
     for m in &dataset.measurements {
         let correction = options.lag_correction.map(|c| LagCorrection::new(base, c));
-        let h_static: Vec<f64> = m
-            .current_a
-            .iter()
-            .map(|i| a.coil_factor_per_m * i)
-            .collect();
+        let current_a = if options.current_shift_samples == 0.0 {
+            m.current_a.clone()
+        } else {
+            shifted(&m.current_a, options.current_shift_samples)
+        };
+        let h_static: Vec<f64> = current_a.iter().map(|i| a.coil_factor_per_m * i).collect();
         let y: Vec<f64> = m
             .displacement_m
             .iter()
@@ -323,7 +348,7 @@ pub fn identify(
                 None => (auto_initial(&h_static, &grid), "estimated"),
             },
         };
-        let branch = options.branch.unwrap_or_else(|| auto_branch(&m.current_a));
+        let branch = options.branch.unwrap_or_else(|| auto_branch(&current_a));
         let initial_sign: i8 = match initial {
             InitialState::NegativeSaturation => -1,
             InitialState::PositiveSaturation => 1,
@@ -338,7 +363,7 @@ pub fn identify(
             zero_band_m,
         );
         let h = match &correction {
-            Some(c) => c.field(&m.current_a, &conv.m_a_per_m, m.step_s),
+            Some(c) => c.field(&current_a, &conv.m_a_per_m, m.step_s),
             None => h_static,
         };
         initials.push(initial);
@@ -567,5 +592,20 @@ fn provenance(
         source: "maglab identify (Preisach masses identified; R_eddy, xi, f0 copied from base)"
             .into(),
         details: d,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shifted;
+
+    #[test]
+    fn shifted_reads_later_samples_linearly_and_holds_the_ends() {
+        let x = [0.0, 1.0, 4.0, 9.0];
+        assert_eq!(shifted(&x, 0.0), x.to_vec());
+        assert_eq!(shifted(&x, 1.0), vec![1.0, 4.0, 9.0, 9.0]);
+        assert_eq!(shifted(&x, -1.0), vec![0.0, 0.0, 1.0, 4.0]);
+        assert_eq!(shifted(&x, 0.5), vec![0.5, 2.5, 6.5, 9.0]);
+        assert!(shifted(&[], 0.3).is_empty());
     }
 }
