@@ -17,9 +17,10 @@
 //! amplitudes, bias, rate, duration: `maglab_plant::suite::Design`).
 //!
 //! **Ignored in `cargo test`: it fails today** (issue 9 open). Measured on all 32 cases
-//! (`IDENTIFIED_CASES=32`) from the datasheet's base: 22/32 correct on seed 1 on c3c4f2e (24/32
-//! before fits started inside their ranges), 22/32 on seed 4 (seeds 2, 3: 21/32, 17/32). The
-//! same seed-1 folders give 29/32 with the identified masses and the plant's R_eddy, ξ, f0 given,
+//! (`IDENTIFIED_CASES=32`) from the datasheet's base: 24/32 correct on seed 1 since the masses
+//! read the current at the displacement's time (22/32 on c3c4f2e; 24/32 before fits started
+//! inside their ranges), 22/32 on seed 4 (seeds 2, 3: 21/32, 17/32). The same seed-1 folders
+//! (c3c4f2e) give 29/32 with the identified masses and the plant's R_eddy, ξ, f0 given,
 //! 28/32 with the plant's masses and the constants free in the identified band (README, "Where
 //! the gap lies").
 //! From the truth (before): 24/32 on seed 1, 20/32 on seeds 2 and 3, 22/32 on seed 4. Every
@@ -165,7 +166,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
 }
 
 #[test]
-#[ignore = "fails today (22/32 on seed 1: lags and loads are absorbed into the identified constants); issue 9"]
+#[ignore = "fails today (24/32 on seed 1: lags and loads are absorbed into the identified constants); issue 9"]
 fn identified_then_diagnosed_suite_names_the_right_effect() {
     let seed: u64 =
         std::env::var("IDENTIFIED_SEED").map_or(1, |s| s.parse().expect("IDENTIFIED_SEED"));
