@@ -250,7 +250,7 @@ pub fn run(args: &Args) -> Result<()> {
         // The channel skew and the current between samples the sines' fit estimated: the
         // masses must see the timing the model they go into sees (on the identified suite's
         // seed 1 this named two more of its 32 folders right and lost none, and brought the
-        // noise-only folders' f0 within 1.2 %).
+        // noise-only folders' f0 within 1.3 %).
         let shift = current_shift_samples(&fit);
         println!(
             "second pass: the masses with the lags of R_eddy = {:.2} Ω, ξ = {:.4}, f0 = {:.1} Hz{}",
