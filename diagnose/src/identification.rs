@@ -34,8 +34,8 @@ pub struct DynamicIdentification {
     pub damping_ratio: f64,
     /// `f0`, Hz.
     pub resonance_hz: f64,
-    /// `hold` or `linear`.
-    pub current_between_samples: String,
+    /// What the current does between its samples.
+    pub current_between_samples: Interpolation,
     /// Channel skew, samples.
     pub channel_skew_samples: f64,
     /// Sensor offset, m.
@@ -60,6 +60,19 @@ pub struct DynamicIdentification {
     /// Highest fundamental of the fitted experiments, Hz (see
     /// [`IdentificationOptions::fit_band_fraction`]).
     pub fitted_up_to_hz: f64,
+}
+
+impl DynamicIdentification {
+    /// Where the current belongs to each displacement sample, in samples after the current's
+    /// own sample time: the channel skew, less half a sample when the current is held (a held
+    /// sample acts, on average, half a sample after its time stamp, as a linear one does at it).
+    pub fn current_read_shift_samples(&self) -> f64 {
+        self.channel_skew_samples
+            - match self.current_between_samples {
+                Interpolation::Hold => 0.5,
+                Interpolation::Linear => 0.0,
+            }
+    }
 }
 
 /// Settings.
@@ -341,7 +354,7 @@ pub fn identify_dynamics(
         eddy_resistance_ohm: v[0],
         damping_ratio: v[1],
         resonance_hz: v[2],
-        current_between_samples: interpolation.name().into(),
+        current_between_samples: interpolation,
         channel_skew_samples: v[3],
         sensor_offset_m: offset,
         start_state: start_sets[fitted.plan].0.name().into(),

@@ -105,8 +105,9 @@ impl Nominal {
     }
 }
 
-/// What the current does between its samples.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+/// What the current does between its samples (serialized by its [`Interpolation::name`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Interpolation {
     /// Held (a DAC).
     Hold,
@@ -672,20 +673,31 @@ fn mech_states<const N: usize>(
         Some((_, _, g, e)) => (1.0 - g * phi) * k_u * m * m + e * phi,
         None => k_u * m * m,
     };
-    let stroke = nominal.stroke_m.max(1e-12);
+    let inv_stroke = 1.0 / nominal.stroke_m.max(1e-12);
+    let inv_ms2 = 1.0 / ms2;
+    let om0_sq = om0 * om0;
     // ΔE: the stiffness depends on the magnetization and on the stress (the elastic strain
-    // (y − u)/stroke), so it is evaluated inside the mechanical step.
-    let om2_of = |m: f64, strain: f64| match mech.delta_e {
-        Some((d1, d2, d3, d_stress)) => {
-            let r = m * m / ms2;
-            om0 * om0 * (1.0 + r * (d1 + r * (d2 + r * d3)) + d_stress * strain).max(0.05)
+    // (y − u)/stroke), so it is evaluated inside the mechanical step. Its magnetization part
+    // `1 + d₁ r + d₂ r² + d₃ r³` (r = m²/M_s²) depends on the input only: it is evaluated once
+    // per point of the substep (`stiffening`), the stress part per RK4 stage (`om2_of`).
+    // (Reciprocals instead of divisions: the two divisions per stage were a fifth of a
+    // diagnosis' time on an out-of-library case.)
+    let stiffening = |m: f64| match mech.delta_e {
+        Some((d1, d2, d3, _)) => {
+            let r = m * m * inv_ms2;
+            1.0 + r * (d1 + r * (d2 + r * d3))
         }
-        None => om0 * om0,
+        None => 1.0,
     };
-    // The state's time derivative at `x`, with the rod's drive `u` and magnetization `m`.
-    let derivative = |x: &[f64; N], u: f64, m: f64| -> [f64; N] {
+    let om2_of = |stiffening: f64, strain: f64| match mech.delta_e {
+        Some((_, _, _, d_stress)) => om0_sq * (stiffening + d_stress * strain).max(0.05),
+        None => om0_sq,
+    };
+    // The state's time derivative at `x`, with the rod's drive `u` and the magnetization's
+    // stiffening `st`.
+    let derivative = |x: &[f64; N], u: f64, st: f64| -> [f64; N] {
         let mut d = [0.0; N];
-        let om2 = om2_of(m, (x[0] - u) / stroke);
+        let om2 = om2_of(st, (x[0] - u) * inv_stroke);
         d[0] = x[1];
         d[1] = -damp * x[1] - om2 * (x[0] - u);
         if let Some((r, w2, c2)) = load {
@@ -703,30 +715,34 @@ fn mech_states<const N: usize>(
         d
     };
     // One substep of RK4 (`sub` steps of `δ/sub`) from `x`, `u` and `M` linear over it.
+    let inv_sub = 1.0 / sub as f64;
     let rk4_substep = |x: [f64; N], u_prev: f64, u_next: f64, m_a: f64, m_b: f64| -> [f64; N] {
         let mut x = x;
         let shifted = |x: &[f64; N], k: &[f64; N], h: f64| -> [f64; N] {
             std::array::from_fn(|i| x[i] + h * k[i])
         };
+        let hd = 0.5 * dm;
+        let d6 = dm / 6.0;
+        let point = |f: f64| {
+            (
+                u_prev + (u_next - u_prev) * f,
+                stiffening(m_a + (m_b - m_a) * f),
+            )
+        };
+        let mut start = point(0.0);
         for q in 0..sub {
-            let fa = q as f64 / sub as f64;
-            let fh = (q as f64 + 0.5) / sub as f64;
-            let fb = (q as f64 + 1.0) / sub as f64;
-            let ua = u_prev + (u_next - u_prev) * fa;
-            let uh = u_prev + (u_next - u_prev) * fh;
-            let ub = u_prev + (u_next - u_prev) * fb;
-            let ma = m_a + (m_b - m_a) * fa;
-            let mh = m_a + (m_b - m_a) * fh;
-            let mb = m_a + (m_b - m_a) * fb;
-            let hd = 0.5 * dm;
-            let k1 = derivative(&x, ua, ma);
-            let k2 = derivative(&shifted(&x, &k1, hd), uh, mh);
-            let k3 = derivative(&shifted(&x, &k2, hd), uh, mh);
-            let k4 = derivative(&shifted(&x, &k3, dm), ub, mb);
-            let d6 = dm / 6.0;
+            let (ua, sa) = start;
+            let (uh, sh) = point((q as f64 + 0.5) * inv_sub);
+            let end = point((q as f64 + 1.0) * inv_sub);
+            let (ub, sb) = end;
+            let k1 = derivative(&x, ua, sa);
+            let k2 = derivative(&shifted(&x, &k1, hd), uh, sh);
+            let k3 = derivative(&shifted(&x, &k2, hd), uh, sh);
+            let k4 = derivative(&shifted(&x, &k3, dm), ub, sb);
             for i in 0..N {
                 x[i] += d6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             }
+            start = end;
         }
         x
     };

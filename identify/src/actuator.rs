@@ -317,11 +317,7 @@ pub fn identify(
     let mut choices = Vec::new();
     for m in &dataset.measurements {
         let correction = options.lag_correction.map(|c| LagCorrection::new(base, c));
-        let current_a = if options.current_shift_samples == 0.0 {
-            m.current_a.clone()
-        } else {
-            shifted(&m.current_a, options.current_shift_samples)
-        };
+        let current_a = shifted(&m.current_a, options.current_shift_samples);
         let h_static: Vec<f64> = current_a.iter().map(|i| a.coil_factor_per_m * i).collect();
         let y: Vec<f64> = m
             .displacement_m

@@ -62,6 +62,24 @@ fn noisy_forc_record(
     (e.current_a, y)
 }
 
+/// The options for a sweep that starts at negative saturation and rises monotonically between
+/// reversals (`noisy_forc_record`), its current read `shift` samples later; cells the sweep
+/// never switches keep the prior masses.
+fn forc_options(shift: f64) -> IdentifyOptions {
+    IdentifyOptions {
+        branch: Some(Branch::Monotone),
+        initial: Some(InitialState::NegativeSaturation),
+        documented: None,
+        lag_correction: None,
+        current_shift_samples: shift,
+        zero_band_fraction: 0.01,
+        fit: FitOptions {
+            unexcited: Unexcited::KeepPrior,
+            ..FitOptions::default()
+        },
+    }
+}
+
 #[test]
 fn forc_dataset_identifies_to_a_valid_parameter_file() {
     let p = actuator_params::paper_defaults();
@@ -70,19 +88,7 @@ fn forc_dataset_identifies_to_a_valid_parameter_file() {
     let (current_a, y) = noisy_forc_record(&p, &reference, 5, |_| 0.0);
     let dir = dataset("forc", &current_a, &y);
     let ds = load_dataset(&dir).unwrap();
-    let options = IdentifyOptions {
-        branch: Some(Branch::Monotone),
-        initial: Some(InitialState::NegativeSaturation),
-        documented: None,
-        lag_correction: None,
-        current_shift_samples: 0.0,
-        zero_band_fraction: 0.01,
-        fit: FitOptions {
-            unexcited: Unexcited::KeepPrior,
-            ..FitOptions::default()
-        },
-    };
-    let id = identify(&ds, &p, "paper defaults", &options).unwrap();
+    let id = identify(&ds, &p, "paper defaults", &forc_options(0.0)).unwrap();
     // Noise reaches below zero near M = 0: clipped and counted, not hidden.
     assert!(id.files[0].clipped_negative > 0);
     assert!(id.fit.unexcited.is_empty());
@@ -199,18 +205,13 @@ fn a_reversible_part_is_identified_with_the_masses() {
     let dir = dataset("forc-reversible", &current_a, &y);
     let ds = load_dataset(&dir).unwrap();
     let run = |reversible: Reversible| {
+        let base = forc_options(0.0);
         let options = IdentifyOptions {
-            branch: Some(Branch::Monotone),
-            initial: Some(InitialState::NegativeSaturation),
-            documented: None,
-            lag_correction: None,
-            current_shift_samples: 0.0,
-            zero_band_fraction: 0.01,
             fit: FitOptions {
-                unexcited: Unexcited::KeepPrior,
                 reversible,
-                ..FitOptions::default()
+                ..base.fit
             },
+            ..base
         };
         identify(&ds, &p, "paper defaults", &options).unwrap()
     };
@@ -279,26 +280,7 @@ fn a_channel_skew_is_taken_out_of_the_masses_by_the_current_shift() {
     let n = current_a.len();
     let dir = dataset("skew", &current_a[..n - skew], &y[skew..]);
     let ds = load_dataset(&dir).unwrap();
-    let run = |shift: f64| {
-        identify(
-            &ds,
-            &p,
-            "paper defaults",
-            &IdentifyOptions {
-                branch: Some(Branch::Monotone),
-                initial: Some(InitialState::NegativeSaturation),
-                documented: None,
-                lag_correction: None,
-                current_shift_samples: shift,
-                zero_band_fraction: 0.01,
-                fit: FitOptions {
-                    unexcited: Unexcited::KeepPrior,
-                    ..FitOptions::default()
-                },
-            },
-        )
-        .unwrap()
-    };
+    let run = |shift: f64| identify(&ds, &p, "paper defaults", &forc_options(shift)).unwrap();
     let ms = p.actuator.saturation_magnetization_a_per_m;
     let l1 = |w: &[f64]| {
         w.iter()

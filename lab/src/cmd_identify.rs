@@ -710,6 +710,7 @@ fn refine(
                 resonance_hz: id.resonance_hz,
             },
             rms_nrmse: 0.0,
+            current_read_shift_samples: id.current_read_shift_samples(),
             details,
         },
         &predictions,
@@ -718,20 +719,12 @@ fn refine(
 }
 
 /// Where the current is read for each displacement sample, in samples after its own sample
-/// time (`IdentifyOptions::current_shift_samples`), from what the final dynamic fit of `fit`
-/// estimated: the channel skew, less half a sample for a current held between samples. 0
-/// without a final fit.
+/// time (`IdentifyOptions::current_shift_samples`), as the final dynamic fit of `fit` estimated
+/// it; 0 without a final fit.
 fn current_shift_samples(fit: &DynamicFit) -> f64 {
-    let Some(estimated) = fit
-        .refined
+    fit.refined
         .as_ref()
-        .and_then(|r| r.details.get("estimated"))
-    else {
-        return 0.0;
-    };
-    let skew = estimated["channel_skew_samples"].as_f64().unwrap_or(0.0);
-    let held = estimated["current_between_samples"].as_str() == Some("hold");
-    skew - if held { 0.5 } else { 0.0 }
+        .map_or(0.0, |r| r.current_read_shift_samples)
 }
 
 /// The Figure 5 chart: `ξ_k` against frequency for candidates around the chosen `R_eddy`.

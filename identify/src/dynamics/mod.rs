@@ -266,6 +266,10 @@ pub struct RefinedFit {
     pub params: DynamicParams,
     /// `√(Σ NRMSE_k² / K)` over the experiments' steady-state windows.
     pub rms_nrmse: f64,
+    /// Where the current belongs to each displacement sample, in samples after the current's
+    /// own sample time, as the fit estimated it (channel skew and the current between samples):
+    /// what [`crate::actuator::IdentifyOptions::current_shift_samples`] takes.
+    pub current_read_shift_samples: f64,
     /// How it was made and what it estimated, for the provenance.
     pub details: serde_json::Value,
 }
