@@ -62,6 +62,16 @@ fn noisy_forc_record(
     (e.current_a, y)
 }
 
+/// The paper's defaults and a noisy FORC record of their masses (the relay reference, 16 relays
+/// per cell side), nothing beside the hysteresis.
+fn paper_forc_record(seed: u64) -> (actuator_params::ActuatorParams, Vec<f64>, Vec<f64>) {
+    let p = actuator_params::paper_defaults();
+    let (h_min, h_max) = (p.preisach.h_min_a_per_m, p.preisach.h_max_a_per_m);
+    let reference = RelayPreisach::new(&p.preisach.weights_a_per_m, h_min, h_max, 16).unwrap();
+    let (current_a, y) = noisy_forc_record(&p, &reference, seed, |_| 0.0);
+    (p, current_a, y)
+}
+
 /// The options for a sweep that starts at negative saturation and rises monotonically between
 /// reversals (`noisy_forc_record`), its current read `shift` samples later; cells the sweep
 /// never switches keep the prior masses.
@@ -82,10 +92,7 @@ fn forc_options(shift: f64) -> IdentifyOptions {
 
 #[test]
 fn forc_dataset_identifies_to_a_valid_parameter_file() {
-    let p = actuator_params::paper_defaults();
-    let (h_min, h_max) = (p.preisach.h_min_a_per_m, p.preisach.h_max_a_per_m);
-    let reference = RelayPreisach::new(&p.preisach.weights_a_per_m, h_min, h_max, 16).unwrap();
-    let (current_a, y) = noisy_forc_record(&p, &reference, 5, |_| 0.0);
+    let (p, current_a, y) = paper_forc_record(5);
     let dir = dataset("forc", &current_a, &y);
     let ds = load_dataset(&dir).unwrap();
     let id = identify(&ds, &p, "paper defaults", &forc_options(0.0)).unwrap();
@@ -271,10 +278,7 @@ fn a_reversible_part_is_identified_with_the_masses() {
 /// the displacement's time (`current_shift_samples`) takes that width back out of the masses.
 #[test]
 fn a_channel_skew_is_taken_out_of_the_masses_by_the_current_shift() {
-    let p = actuator_params::paper_defaults();
-    let (h_min, h_max) = (p.preisach.h_min_a_per_m, p.preisach.h_max_a_per_m);
-    let reference = RelayPreisach::new(&p.preisach.weights_a_per_m, h_min, h_max, 16).unwrap();
-    let (current_a, y) = noisy_forc_record(&p, &reference, 11, |_| 0.0);
+    let (p, current_a, y) = paper_forc_record(11);
     // The displacement of sample k is the rod's at sample k + 3: read 3 ms after the current.
     let skew = 3;
     let n = current_a.len();
