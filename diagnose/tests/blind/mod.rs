@@ -104,18 +104,20 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
                 let o = run_case(&params, case);
                 if verbose {
                     // The gap left by the best single candidate and by the best pair, % of the
-                    // refitted nominal model's systematic gap (the margins of the verdict).
+                    // refitted nominal model's systematic gap (the margins of the verdict), and
+                    // that gap against the model's own integration error (`none` within 1.5x).
                     let d = &o.diagnosis;
                     let gap0 = d.refitted_nominal.systematic_before_m.max(1e-300);
                     let single = d.ranking.first().map_or(f64::NAN, |c| c.systematic_after_m);
                     let pair = d.second_stage.first().map_or(f64::NAN, |c| c.systematic_after_m);
                     println!(
-                        "{} {:2} {} -> {} ({:.1} s; best single leaves {:.0} %, best pair {:.0} %){}",
+                        "{} {:2} {} -> {} ({:.1} s; gap {:.1}x the model's integration error; best single leaves {:.0} %, best pair {:.0} %){}",
                         if o.correct { "ok  " } else { "MISS" },
                         i,
                         o.case.describe(),
                         o.named.join("+"),
                         o.seconds,
+                        gap0 / d.model_error_m.max(1e-300),
                         100.0 * single / gap0,
                         100.0 * pair / gap0,
                         if o.correct {
