@@ -399,6 +399,14 @@ pub struct Diagnosis {
     /// (mean removed) between the refitted nominal model's prediction with the diagnosis's
     /// substeps and with twice as many. A gap up to [`MODEL_ERROR_FACTOR`] times it is `none`.
     pub model_error_m: f64,
+    /// Electromagnetic substeps per sample of this diagnosis's model (Richardson-extrapolated
+    /// with twice as many).
+    pub substeps: usize,
+    /// Why the substeps were raised above the requested ones, if they were.
+    pub substeps_raised: Option<String>,
+    /// The verdict is `none` only because the gap is within the model's integration error (the
+    /// noise-based rule alone would not have said `none`; `--substeps` gives a finer model).
+    pub none_by_model_error: bool,
     /// How far the refit could move the constants, and why (step 6).
     pub constants_range: ConstantsRange,
     /// Effects beyond the paper's model that the parameter file models because its
@@ -588,8 +596,22 @@ pub(crate) fn offset_of(items: &[(&[f64], &[f64], usize)]) -> f64 {
     }
 }
 
+/// The model's substeps may be raised to at most this many times the requested ones
+/// ([`diagnose`]).
+pub const MAX_SUBSTEPS_FACTOR: usize = 4;
+
 /// Runs the diagnosis on `measurements` with the nominal parameters; `documented` is the
 /// dataset's `dataset.json` when it has one.
+///
+/// When the refitted nominal model's held-out gap is above the noise-based `none` threshold but
+/// within [`MODEL_ERROR_FACTOR`] times the model's own integration error (little noise, or a low
+/// sample rate against the excitation), the model cannot tell an effect of that size from its own
+/// error: the diagnosis starts again with twice the substeps (each time, up to
+/// [`MAX_SUBSTEPS_FACTOR`] times the requested ones; about twice the time per doubling) and says
+/// so in [`Diagnosis::substeps_raised`]. A gap between the noise-based floor and threshold that a
+/// candidate would explain but the model's error covers is `none`
+/// ([`Diagnosis::none_by_model_error`]), without more substeps: below that threshold the rules
+/// name an effect only on a candidate's explanation, which the model's error makes unsure.
 pub fn diagnose(
     params: &actuator_params::ActuatorParams,
     measurements: &[Measurement],
@@ -597,6 +619,61 @@ pub fn diagnose(
     options: &DiagnoseOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<DiagnosisRun, String> {
+    let requested = options.substeps.max(1);
+    let mut substeps = requested;
+    let mut raised: Vec<String> = Vec::new();
+    loop {
+        let at = DiagnoseOptions {
+            substeps,
+            ..options.clone()
+        };
+        let may_raise = substeps * 2 <= requested * MAX_SUBSTEPS_FACTOR;
+        let mut run = match diagnose_at(params, measurements, documented, &at, may_raise, progress)?
+        {
+            Attempt::Done(run) => *run,
+            Attempt::Refine {
+                gap_m,
+                model_error_m,
+            } => {
+                raised.push(format!(
+                    "at {substeps} substep(s) per sample the held-out gap ({gap_m:.3e} m) was \
+                     within {MODEL_ERROR_FACTOR} x the model's integration error \
+                     ({model_error_m:.3e} m) but not within the noise"
+                ));
+                substeps *= 2;
+                continue;
+            }
+        };
+        if !raised.is_empty() {
+            run.diagnosis.substeps_raised = Some(format!(
+                "substeps raised from {requested} to {substeps}: {}",
+                raised.join("; ")
+            ));
+        }
+        return Ok(run);
+    }
+}
+
+/// What one [`diagnose_at`] gave.
+enum Attempt {
+    /// The diagnosis.
+    Done(Box<DiagnosisRun>),
+    /// The refitted nominal model's held-out gap is above the noise-based `none` threshold but
+    /// within [`MODEL_ERROR_FACTOR`] times the model's integration error: `none` only because of
+    /// the model, whatever the candidates do; [`diagnose`] runs again with more substeps.
+    Refine { gap_m: f64, model_error_m: f64 },
+}
+
+/// [`diagnose`] with `options.substeps` as given; `may_refine`: stop at [`Attempt::Refine`]
+/// before fitting the candidates when the model's error alone decides.
+fn diagnose_at(
+    params: &actuator_params::ActuatorParams,
+    measurements: &[Measurement],
+    documented: Option<&DatasetInfo>,
+    options: &DiagnoseOptions,
+    may_refine: bool,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Attempt, String> {
     params
         .validate("nominal parameters")
         .map_err(|e| e.to_string())?;
@@ -826,6 +903,33 @@ pub fn diagnose(
     ];
     let refit = fitter.fit(&Candidate::nominal(), std::slice::from_ref(&common_start));
     progress(1);
+    let scorer = Scorer {
+        setup,
+        fitter: Some(&fitter),
+        plan_data: &plan_data,
+        dynamic: &dynamic,
+        training: &training,
+        held_out: &held_out,
+        infos: &infos,
+        noise_m,
+        none_threshold_m: none_threshold(noise_m, range),
+    };
+    let base = scorer.predict(&refit);
+    let refit_result = scorer.result(&refit, &base, &base);
+    let model_error_m = scorer.discretization_error(&refit, &base);
+    let gap0 = refit_result.systematic_before_m;
+    let floor = resolution_floor(noise_m, range);
+    // A gap the model's own integration error can account for is no effect: below the larger
+    // floor the verdict is `none` outright, and the threshold is at least that floor.
+    let none_floor = floor.max(MODEL_ERROR_FACTOR * model_error_m);
+    if may_refine && gap0 > floor.max(none_threshold(noise_m, range)) && gap0 <= none_floor {
+        // `none` only because of the model's error, whatever the candidates do: no need to fit
+        // them at these substeps.
+        return Ok(Attempt::Refine {
+            gap_m: gap0,
+            model_error_m,
+        });
+    }
     // Each effect starts from the refitted constants and from the file's (the refitted ones may
     // have stretched to mimic the effect).
     let commons = [
@@ -850,20 +954,6 @@ pub fn diagnose(
         .collect();
 
     // ---- Step 7: score.
-    let scorer = Scorer {
-        setup,
-        fitter: Some(&fitter),
-        plan_data: &plan_data,
-        dynamic: &dynamic,
-        training: &training,
-        held_out: &held_out,
-        infos: &infos,
-        noise_m,
-        none_threshold_m: none_threshold(noise_m, range),
-    };
-    let base = scorer.predict(&refit);
-    let refit_result = scorer.result(&refit, &base, &base);
-    let model_error_m = scorer.discretization_error(&refit, &base);
     let mut ranked: Vec<(CandidateResult, PlanFit, Scored)> = fitted
         .into_par_iter()
         .map(|f| {
@@ -873,11 +963,6 @@ pub fn diagnose(
         .collect();
     let mut singles_tie = sort_by_held_out(&mut ranked, |r| r.significant);
     progress(1);
-    let gap0 = refit_result.systematic_before_m;
-    let floor = resolution_floor(noise_m, range);
-    // A gap the model's own integration error can account for is no effect: below the larger
-    // floor the verdict is `none` outright, and the threshold is at least that floor.
-    let none_floor = floor.max(MODEL_ERROR_FACTOR * model_error_m);
     let threshold = none_threshold(noise_m, range).max(none_floor);
     let mut winner = ranked.iter().position(|r| r.0.significant);
     let mut additional_effects = Vec::new();
@@ -1232,6 +1317,11 @@ pub fn diagnose(
         }
     }
     let explained = pair_winner.is_some() || winner.is_some();
+    // `none` only because of the model's integration error: the noise-based rule alone would
+    // have named an effect or `unexplained` ([`diagnose`] then runs again with more substeps).
+    let noise_none = gap0 <= floor || (gap0 <= none_threshold(noise_m, range) && !explained);
+    let none_by_model_error =
+        !noise_none && (gap0 <= none_floor || (gap0 <= threshold && !explained));
     let (verdict, reason, best_preds) = if gap0 <= none_floor || (gap0 <= threshold && !explained) {
         let within = if gap0 <= MODEL_ERROR_FACTOR * model_error_m && gap0 > floor {
             format!(
@@ -1376,7 +1466,8 @@ pub fn diagnose(
                 .unwrap_or_else(|| shifted[k].clone()),
         })
         .collect();
-    Ok(DiagnosisRun {
+    let none_by_model_error = none_by_model_error && verdict == "none";
+    Ok(Attempt::Done(Box::new(DiagnosisRun {
         diagnosis: Diagnosis {
             verdict,
             verdict_reason: reason,
@@ -1391,6 +1482,9 @@ pub fn diagnose(
             nominal_rms_m: nominal_rms,
             nominal_systematic_m: nominal_systematic,
             model_error_m,
+            substeps: options.substeps,
+            substeps_raised: None,
+            none_by_model_error,
             constants_range,
             effects_in_parameter_file,
             parameter_file_warnings: params
@@ -1406,7 +1500,7 @@ pub fn diagnose(
             where_,
         },
         traces,
-    })
+    })))
 }
 
 /// The start plans (step 2): documented starts are fixed; the others follow one dataset-wide

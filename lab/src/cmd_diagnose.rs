@@ -207,12 +207,26 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
         s,
         "Noise level (white residual above 0.3 f_s): {} µm; displacement range {} µm; nominal RMS \
          residual {} µm (systematic {} µm); the model's own integration error on the held-out \
-         experiments {} µm (against itself with twice the substeps; `--substeps` lowers it).\n",
+         experiments {} µm at {} substep(s) per sample (against itself with twice the substeps; \
+         `--substeps` lowers it){}.\n",
         um(d.noise_m),
         um(d.displacement_range_m),
         um(d.nominal_rms_m),
         um(d.nominal_systematic_m),
-        um(d.model_error_m)
+        um(d.model_error_m),
+        d.substeps,
+        d.substeps_raised
+            .as_ref()
+            .map_or(String::new(), |r| format!("; {r}"))
+            + &if d.none_by_model_error {
+                format!(
+                    "; the verdict is `none` only because of that error (a candidate explained \
+                     the gap): `--substeps {}` gives a finer model",
+                    2 * d.substeps
+                )
+            } else {
+                String::new()
+            }
     );
     let _ = writeln!(s, "## Where\n");
     for line in &d.where_.summary {
