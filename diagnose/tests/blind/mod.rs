@@ -111,13 +111,14 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
                     let single = d.ranking.first().map_or(f64::NAN, |c| c.systematic_after_m);
                     let pair = d.second_stage.first().map_or(f64::NAN, |c| c.systematic_after_m);
                     println!(
-                        "{} {:2} {} -> {} ({:.1} s; gap {:.1}x the model's integration error; best single leaves {:.0} %, best pair {:.0} %){}",
+                        "{} {:2} {} -> {} ({:.1} s; gap {:.1}x the model's integration error at {} substep(s); best single leaves {:.0} %, best pair {:.0} %){}",
                         if o.correct { "ok  " } else { "MISS" },
                         i,
                         o.case.describe(),
                         o.named.join("+"),
                         o.seconds,
                         gap0 / d.model_error_m.max(1e-300),
+                        d.substeps,
                         100.0 * single / gap0,
                         100.0 * pair / gap0,
                         if o.correct {
