@@ -584,12 +584,15 @@ pub fn track_mech(
     step_s: f64,
     theta0: (f64, f64),
 ) -> MechTrack {
-    // The second load mode's two states exist only when it is switched on (a compile-time
-    // size: the one-mode integrator keeps its four states and its arithmetic).
+    // The load's states exist only when it is switched on (a compile-time size: the rod alone
+    // keeps two states, one load mode four; the states of an absent load would stay at rest
+    // and only cost arithmetic).
     let (pos_m, rate_m_per_s) = if mech.second_load.is_some() {
         mech_states::<6>(nominal, mech, run, n_samples, step_s, theta0)
-    } else {
+    } else if mech.load.is_some() {
         mech_states::<4>(nominal, mech, run, n_samples, step_s, theta0)
+    } else {
+        mech_states::<2>(nominal, mech, run, n_samples, step_s, theta0)
     };
     MechTrack {
         substeps: run.substeps,
@@ -612,8 +615,9 @@ pub fn observe(mech: &Mech, track: &MechTrack, n_samples: usize, step_s: f64) ->
 }
 
 /// The rod and load integrated over every substep of `run`: the observed position and rate at
-/// each substep point. State `[y1, v1, y2, v2]` (rod, first load mass), and with `N = 6` the
-/// second load mass `[y3, v3]` hanging on the first.
+/// each substep point. State `[y1, v1]` (the rod) with `N = 2`, `[y1, v1, y2, v2]` (rod, first
+/// load mass) with `N = 4`, and with `N = 6` the second load mass `[y3, v3]` hanging on the
+/// first.
 fn mech_states<const N: usize>(
     nominal: &Nominal,
     mech: &Mech,
@@ -632,7 +636,7 @@ fn mech_states<const N: usize>(
         let w = 2.0 * PI * f;
         (r, w * w, 2.0 * z * w)
     };
-    let load = mech.load.map(mode);
+    let load = if N >= 4 { mech.load.map(mode) } else { None };
     let second = if N == 6 {
         mech.second_load.map(mode)
     } else {

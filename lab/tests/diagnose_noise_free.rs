@@ -10,21 +10,8 @@
 //! A bench with a nanometre sensor is in the same place. At 5 kHz (the same sines up to 500 Hz)
 //! that error is 0.5 % of the motion, above the noise-based threshold (0.2 %): the diagnosis
 //! then starts again with twice the substeps, where the gap falls within the noise.
-use std::process::Command;
-
-fn maglab(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_maglab"))
-        .args(args)
-        .output()
-        .expect("maglab runs");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "maglab {args:?} failed:\n{text}");
-    text
-}
+mod common;
+use common::maglab;
 
 /// Records a noise-free dataset without an effect (`rig_args` added), diagnoses it with the
 /// plant's own file and returns `diagnosis.json` and the report's text.

@@ -16,22 +16,8 @@
 //! `none` (with the constants refitted in the wide range of identified constants), and the
 //! report's "where" has one frequency band per sine frequency, none for the reversal sweep.
 mod common;
+use common::maglab;
 use std::path::Path;
-use std::process::Command;
-
-fn maglab(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_maglab"))
-        .args(args)
-        .output()
-        .expect("maglab runs");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "maglab {args:?} failed:\n{text}");
-    text
-}
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).expect("file written")).expect("JSON")

@@ -2,28 +2,15 @@
 //! the defaults (piecewise reversible part and offset on, initial state chosen from the data, predict grouped like the
 //! fit), per-experiment scores, negative `--levels-range` ends, and a model that agrees with its
 //! own fit when the grid is narrower than the data.
+mod common;
+use common::maglab;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 fn data() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("..")
         .join("identify/tests/data/real/bh-loops/mnzn-ferrite.csv")
-}
-
-fn maglab(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_maglab"))
-        .args(args)
-        .output()
-        .expect("runs maglab");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "maglab {args:?} failed:\n{text}");
-    text
 }
 
 fn number_after(text: &str, key: &str) -> f64 {

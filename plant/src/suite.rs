@@ -372,13 +372,15 @@ fn frequency_of(description: &str) -> f64 {
 /// reaches it (from the default, steps of ×3 towards a smaller or larger effect until the target
 /// is bracketed, then bisection on a log scale); returns the effect and the gap reached (below
 /// the target when the gap stops growing before the target, or at the end of the parameter's
-/// range).
+/// range). `without`: the same experiments without any effect ([`GapRuns::new`] with no effects),
+/// run once by the caller for every effect and draw of a case.
 pub fn calibrate(
     params: &ActuatorParams,
     effect: &Effect,
     target: f64,
     experiments: &[Experiment],
     settings: &BenchSettings,
+    without: &GapRuns,
 ) -> Result<(Effect, f64), String> {
     let (key, increasing) = effect.spec.magnitude;
     let (_, _, lo, hi, _) = *effect
@@ -398,11 +400,10 @@ pub fn calibrate(
     } else {
         hi.abs()
     };
-    let without = GapRuns::new(params, &[], experiments, settings)?;
     let gap_at = |m: f64| -> Result<(Effect, f64), String> {
         let e = with_magnitude(effect, m)?;
         let with = GapRuns::new(params, std::slice::from_ref(&e), experiments, settings)?;
-        Ok((e, gap_between(&with, &without)))
+        Ok((e, gap_between(&with, without)))
     };
     let toward_big = |m: f64| {
         if increasing {
@@ -598,6 +599,12 @@ pub fn draw_with(
     let mut effects = Vec::new();
     let mut target_gaps = Vec::new();
     let mut gaps = Vec::new();
+    // The plant without effects, the reference of every calibration below (none: noise only).
+    let without = if names.is_empty() {
+        GapRuns { runs: Vec::new() }
+    } else {
+        GapRuns::new(params, &[], &experiments, &settings)?
+    };
     for name in names {
         let target = log_uniform(&mut rng, lo, hi);
         // An effect whose plausible range cannot reach the target gets a new shape (up to eight
@@ -605,7 +612,7 @@ pub fn draw_with(
         let mut result: Option<(Effect, f64)> = None;
         for _ in 0..8 {
             let e = shaped(name, &mut rng)?;
-            let (e, g) = calibrate(params, &e, target, &experiments, &settings)?;
+            let (e, g) = calibrate(params, &e, target, &experiments, &settings, &without)?;
             let reached = g >= 0.9 * target;
             if result.as_ref().is_none_or(|(_, best)| g > *best) {
                 result = Some((e, g));
