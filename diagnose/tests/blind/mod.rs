@@ -103,15 +103,16 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
                 .expect("the case is drawn");
                 let o = run_case(&params, case);
                 if verbose {
-                    // The gap left by the best single candidate and by the best pair, % of the
-                    // refitted nominal model's systematic gap (the margins of the verdict), and
+                    // The gap left by the best single candidate (also in units of the noise σ:
+                    // the second stage's trigger) and by the best pair, % of the refitted
+                    // nominal model's systematic gap (the margins of the verdict), and
                     // that gap against the model's own integration error (`none` within 1.5x).
                     let d = &o.diagnosis;
                     let gap0 = d.refitted_nominal.systematic_before_m.max(1e-300);
                     let single = d.ranking.first().map_or(f64::NAN, |c| c.systematic_after_m);
                     let pair = d.second_stage.first().map_or(f64::NAN, |c| c.systematic_after_m);
                     println!(
-                        "{} {:2} {} -> {} ({:.1} s; gap {:.1}x the model's integration error at {} substep(s); best single leaves {:.0} %, best pair {:.0} %){}",
+                        "{} {:2} {} -> {} ({:.1} s; gap {:.1}x the model's integration error at {} substep(s); best single leaves {:.0} % ({:.1} sigma), best pair {:.0} %){}",
                         if o.correct { "ok  " } else { "MISS" },
                         i,
                         o.case.describe(),
@@ -120,6 +121,7 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
                         gap0 / d.model_error_m.max(1e-300),
                         d.substeps,
                         100.0 * single / gap0,
+                        single / d.noise_m.max(1e-300),
                         100.0 * pair / gap0,
                         if o.correct {
                             String::new()
