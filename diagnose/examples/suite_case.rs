@@ -57,7 +57,7 @@ fn main() {
     for c in &d.ranking {
         show(c);
     }
-    println!("second stage:");
+    println!("second stage: {}", d.second_stage_reason);
     for c in &d.second_stage {
         show(c);
     }

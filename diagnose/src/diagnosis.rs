@@ -394,6 +394,9 @@ pub struct Diagnosis {
     /// The second stage: every other candidate refitted on top of the winner (empty when it did
     /// not run), scored against the winner alone.
     pub second_stage: Vec<CandidateResult>,
+    /// Why the second stage ran, in which form, or why not (step 8), in words; after a small
+    /// remainder also why its best pair was not named when its second effect was not specific.
+    pub second_stage_reason: String,
     /// The significance criterion, in words.
     pub criterion: String,
     /// Estimated white-noise level σ, m.
@@ -1034,6 +1037,44 @@ fn diagnose_at(
                 })
             }
         };
+    let share_of_gap = |left: f64| 100.0 * left / gap0.max(f64::MIN_POSITIVE);
+    let mut second_stage_reason = match winner {
+        Some(w) => {
+            let left = ranked[w].0.systematic_after_m;
+            let amount = format!(
+                "{} leaves {:.2} σ of held-out systematic gap ({:.1} % of the refitted nominal \
+                 model's)",
+                ranked[w].0.effect,
+                left / noise_m.max(f64::MIN_POSITIVE),
+                share_of_gap(left)
+            );
+            if small_remainder {
+                format!(
+                    "{amount}: below max(2 σ, 10 %), above max({SMALL_REMAINDER_NOISE} σ, {} %): \
+                     only {} with each other effect was fitted",
+                    100.0 * SMALL_REMAINDER_SHARE,
+                    ranked[w].0.effect
+                )
+            } else if run_pairs {
+                format!("{amount}, above max(2 σ, 10 %): the pairs were fitted")
+            } else {
+                format!(
+                    "{amount}, at most max({SMALL_REMAINDER_NOISE} σ, {} %): no second effect \
+                     looked for",
+                    100.0 * SMALL_REMAINDER_SHARE
+                )
+            }
+        }
+        None if run_pairs => "no single candidate is significant, but one removes a good part \
+             of the held-out or training gap: the pairs were fitted"
+            .to_string(),
+        None => "no single candidate is significant or promising: no pairs fitted".to_string(),
+    };
+    if gap0 <= none_floor {
+        second_stage_reason = "the refitted nominal model's gap is within the gap estimate's \
+             resolution or the model's own integration error: no pairs fitted"
+            .to_string();
+    }
     let mut pair_winner: Option<(CandidateResult, Scored, Vec<EffectName>)> = None;
     let mut pairs_tie: Option<HeldOutTie> = None;
     let mut single_refits: Vec<PlanFit> = Vec::new();
@@ -1170,6 +1211,22 @@ fn diagnose_at(
                 }
                 _ => true,
             };
+        if let (false, Some(best), Some(next)) = (specific, pairs.first(), pairs.get(1)) {
+            second_stage_reason.push_str(&format!(
+                "; no pair named: {} is not specific ({} leaves {:.0} % of the remainder, {} \
+                 {:.0} %; named only when the next leaves >= {:.0} % and the best <= {:.0} % \
+                 of the next): the remainder is the form of {} differing from the rig's, not a \
+                 second effect",
+                best.0.effect,
+                best.0.effect,
+                100.0 * best.0.systematic_after_m / base_gap.max(f64::MIN_POSITIVE),
+                next.0.effect,
+                100.0 * next.0.systematic_after_m / base_gap.max(f64::MIN_POSITIVE),
+                100.0 * SPECIFIC_NEXT_SHARE,
+                100.0 * SPECIFIC_SECOND_RATIO,
+                ranked[best_single].0.effect,
+            ));
+        }
         if let Some(best) = pairs.first().filter(|_| specific) {
             (pair_winner, single_refits) = accept(best);
         }
@@ -1537,6 +1594,7 @@ fn diagnose_at(
             held_out_tie,
             additional_effects,
             second_stage,
+            second_stage_reason,
             criterion: CRITERION.to_string(),
             noise_m,
             displacement_range_m: range,

@@ -289,6 +289,7 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
             params.join(", ")
         );
     }
+    let _ = writeln!(s, "\nSecond stage: {}.", d.second_stage_reason);
     if !d.second_stage.is_empty() {
         let _ = writeln!(
             s,

@@ -50,7 +50,7 @@ fn diagnose_noise_free(rig_args: &[&str]) -> (serde_json::Value, String) {
 fn a_noise_free_dataset_without_an_effect_is_none_within_the_models_integration_error() {
     // Five frequencies through the rod's resonance region, two amplitudes (a CI budget; the
     // README's 8 x 2 dataset gives the same verdict).
-    let (d, _) = diagnose_noise_free(&[
+    let (d, text) = diagnose_noise_free(&[
         "--freq",
         "20,50,100,200,400",
         "--amplitude-a",
@@ -74,6 +74,15 @@ fn a_noise_free_dataset_without_an_effect_is_none_within_the_models_integration_
         "gap {gap_m:.3e} m, model error {model_error_m:.3e} m"
     );
     assert_eq!(d["none_by_model_error"], true);
+    // The second stage says why it did not run, in the JSON and the report.
+    let reason = d["second_stage_reason"]
+        .as_str()
+        .expect("second_stage_reason");
+    assert!(
+        reason.contains("integration error: no pairs fitted"),
+        "{reason}"
+    );
+    assert!(text.contains(&format!("Second stage: {reason}.")), "{text}");
     assert_eq!(d["substeps"], 1);
     assert!(d["substeps_raised"].is_null(), "{}", d["substeps_raised"]);
 }
