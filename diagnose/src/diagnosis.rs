@@ -1006,20 +1006,22 @@ fn diagnose_at(
     // A remainder below twice the noise level (or a tenth of the gap) but above
     // [`SMALL_REMAINDER_NOISE`] σ and [`SMALL_REMAINDER_SHARE`] of the gap calls only for the
     // winner's forward selection: the winner with each other effect of the library.
-    let small_remainder = winner.is_some_and(|w| {
-        let left = ranked[w].0.systematic_after_m;
-        left <= (2.0 * noise_m).max(0.1 * gap0)
+    // What the winner leaves, and the floor above which the full second stage runs.
+    let winner_left_m = winner.map(|w| ranked[w].0.systematic_after_m);
+    let full_stage_floor_m = (2.0 * noise_m).max(0.1 * gap0);
+    let small_remainder = winner_left_m.is_some_and(|left| {
+        left <= full_stage_floor_m
             && left > (SMALL_REMAINDER_NOISE * noise_m).max(SMALL_REMAINDER_SHARE * gap0)
     });
     let run_pairs = small_remainder
-        || match winner {
+        || match winner_left_m {
             // A remainder below twice the noise level gets the full pair stage no more: tried on
             // the bench plant's suites (seeds 1-5, before the forward selection and the
             // one-effect-before-two step), running every pair down to the gap estimate's
             // resolution named one pair more right and two single effects as pairs (a reversible
             // term whose library form leaves a quarter of its gap, which a second effect then
             // mops up).
-            Some(w) => ranked[w].0.systematic_after_m > (2.0 * noise_m).max(0.1 * gap0),
+            Some(left) => left > full_stage_floor_m,
             // A candidate that pins a parameter counts as well: alone it may have stretched to a
             // limit to cover a second effect too (ΔE taking a sensor lag's share), which the pair
             // then need not do. The pair itself must still pin nothing.
@@ -1037,7 +1039,6 @@ fn diagnose_at(
                 })
             }
         };
-    let share_of_gap = |left: f64| 100.0 * left / gap0.max(f64::MIN_POSITIVE);
     let mut second_stage_reason = match winner {
         Some(w) => {
             let left = ranked[w].0.systematic_after_m;
@@ -1046,7 +1047,7 @@ fn diagnose_at(
                  model's)",
                 ranked[w].0.effect,
                 left / noise_m.max(f64::MIN_POSITIVE),
-                share_of_gap(left)
+                100.0 * left / gap0.max(f64::MIN_POSITIVE)
             );
             if small_remainder {
                 format!(
@@ -1121,9 +1122,10 @@ fn diagnose_at(
         // the best single may be a stand-in that covers part of both effects (blind suite seed
         // 3 case 28: an amplifier lag ranked first for eddy currents + reversible magnetization,
         // whose reversible term alone does nothing; eddy currents came second).
-        let runner_up =
-            (0..ranked.len()).find(|&i| i != best_single && ranked[i].0.pinned.is_empty());
-        let runner_up = runner_up.filter(|_| !small_remainder);
+        // (Not after a small remainder: there only the winner leads.)
+        let runner_up = (0..ranked.len())
+            .find(|&i| i != best_single && ranked[i].0.pinned.is_empty())
+            .filter(|_| !small_remainder);
         for lead in std::iter::once(best_single).chain(runner_up) {
             for j in 0..ranked.len() {
                 let listed = combos.iter().any(|&p| p == (lead, j) || p == (j, lead));
