@@ -1630,7 +1630,8 @@ fn diagnose_at(
 /// that continues a lead-in record (`lead_ins[k]`: the memory the quasi-static record before it
 /// left, simulated once, see [`lead_in_memory`]) starts from that memory instead of simulating
 /// the record in every fit; the first experiment of a chain without one starts demagnetized.
-pub(crate) fn start_sets(
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn start_sets(
     documented: &[Option<StartState>],
     lead_ins: &[Option<Arc<Memory>>],
 ) -> Vec<(StartState, Vec<(ModelStart, bool)>)> {
@@ -1666,7 +1667,8 @@ pub(crate) fn start_sets(
 /// it without a reset starts from this memory, [`ModelStart::After`]: the memory of a slow
 /// record hardly depends on `R_eddy`, `ξ`, `f0` or on any effect of the library (none of them
 /// changes the field history at its frequency), so it is not re-simulated in every fit.
-pub(crate) fn lead_in_memory(
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn lead_in_memory(
     setup: &ModelSetup<'_>,
     electro: &Electro,
     record: &Measurement,
@@ -1778,7 +1780,8 @@ pub(crate) fn estimate_nuisances(
     }
 }
 
-pub(crate) fn experiment_data<'a>(
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn experiment_data<'a>(
     measurements: &'a [Measurement],
     settles: &[usize],
     starts: &[(ModelStart, bool)],
@@ -1934,7 +1937,8 @@ impl PlanFitter<'_> {
 
 /// Effects beyond the paper's model that `params` models and lists as identified from data:
 /// a reversible part (`preisach.reversible_susceptibility` in `provenance.identified`).
-fn effects_identified_into(params: &actuator_params::ActuatorParams) -> Vec<String> {
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn effects_identified_into(params: &actuator_params::ActuatorParams) -> Vec<String> {
     let identified = params.provenance.identified_fields();
     let reversible = params
         .preisach
@@ -1950,7 +1954,8 @@ fn effects_identified_into(params: &actuator_params::ActuatorParams) -> Vec<Stri
 
 /// The significant candidates other than `winner` whose training RMS is within
 /// [`EQUAL_ON_TRAINING`] of the winner's ([`Diagnosis::equal_on_training`]).
-fn equal_on_training<'a>(
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn equal_on_training<'a>(
     winner: &CandidateResult,
     candidates: impl Iterator<Item = &'a CandidateResult>,
 ) -> Vec<String> {
@@ -1995,20 +2000,22 @@ fn sort_by_held_out(
 }
 
 /// The outcome of [`held_out_tie_break`], as indices into the ordered results.
+#[doc(hidden)] // public for tests/internals.rs only
 #[derive(Debug, PartialEq)]
-struct TieIndices {
+pub struct TieIndices {
     /// The one preferred (the best eligible one, `tied[0]`, when nothing was preferred to it).
-    preferred: usize,
+    pub preferred: usize,
     /// The eligible results within [`EQUAL_HELD_OUT`] of the best eligible one's held-out
     /// error, it first, in held-out order.
-    tied: Vec<usize>,
+    pub tied: Vec<usize>,
 }
 
 /// For `results` ordered by held-out error: the best eligible one, the one preferred to it —
 /// among the eligible results within [`EQUAL_HELD_OUT`] of the best eligible one's held-out
 /// error, the one with the fewest [`CandidateResult::constants_at_range_end`] (the earlier on
 /// equal counts) — and those tied.
-fn held_out_tie_break(
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn held_out_tie_break(
     results: &[&CandidateResult],
     eligible: impl Fn(&CandidateResult) -> bool,
 ) -> Option<TieIndices> {
@@ -2324,232 +2331,4 @@ fn split(infos: &mut [ExperimentInfo], dynamic: &[usize]) -> Result<(), String> 
         return Err("could not split the experiments into training and held-out sets".into());
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn record(name: &str, current_a: Vec<f64>, step_s: f64) -> Measurement {
-        Measurement {
-            path: std::path::PathBuf::from(name),
-            t_s: (0..current_a.len()).map(|k| k as f64 * step_s).collect(),
-            displacement_m: vec![0.0; current_a.len()],
-            current_a,
-            step_s,
-        }
-    }
-
-    /// A sine that continues a reversal sweep: starting it from the memory the sweep left
-    /// (simulated once) gives exactly the magnetization of simulating the chain through the
-    /// sweep, and `electro_runs` no longer simulates the sweep for it. Without the lead-in, the
-    /// start plan `previous` would start the sine demagnetized.
-    #[test]
-    fn an_experiment_continuing_a_sweep_starts_from_the_memory_the_sweep_left() {
-        let params = actuator_params::paper_defaults();
-        let nominal = Nominal::from_params(&params);
-        let core = magctl::params::ActuatorParameters::from_file(&params, "defaults").unwrap();
-        let measure = core.preisach.measure();
-        let step_s = 1e-4;
-        let top_a = 1.0;
-        // A 1 Hz triangle over the whole range, ending at +0.6 of it on the way down.
-        let sweep: Vec<f64> = (0..15_000)
-            .map(|k| {
-                let phase = (k as f64 * step_s).fract();
-                top_a * (1.0 - 4.0 * (phase - 0.5).abs()).clamp(-1.0, 1.0)
-            })
-            .collect();
-        let sine: Vec<f64> = (0..500)
-            .map(|k| 0.5 + 0.2 * (2.0 * std::f64::consts::PI * 100.0 * k as f64 * step_s).sin())
-            .collect();
-        let records = [
-            record("00_sweep.csv", sweep, step_s),
-            record("01_sine.csv", sine, step_s),
-        ];
-        let setup = ModelSetup {
-            nominal: &nominal,
-            measure: &measure,
-            step_s,
-            interpolation: Interpolation::Linear,
-            substeps: 1,
-        };
-        let electro = Electro::nominal(nominal.eddy_resistance_ohm);
-        let settles = [0, 0];
-        let through_the_sweep = experiment_data(
-            &records,
-            &settles,
-            &[
-                (ModelStart::NegativeSaturation, false),
-                (ModelStart::Previous, true),
-            ],
-        );
-        let chained = setup.electro_runs(&electro, &through_the_sweep, &[1], &[500]);
-
-        let documented = [Some(StartState::NegativeSaturation), None];
-        let memory = lead_in_memory(
-            &setup,
-            &electro,
-            &records[0],
-            Some(StartState::NegativeSaturation),
-        );
-        let lead_ins = [None, Some(memory)];
-        let plans = start_sets(&documented, &lead_ins);
-        let (_, previous_plan) = plans
-            .iter()
-            .find(|(plan, _)| *plan == StartState::Previous)
-            .expect("the previous plan is tried");
-        assert!(matches!(previous_plan[1], (ModelStart::After(_), true)));
-        let (_, demagnetized_plan) = plans
-            .iter()
-            .find(|(plan, _)| *plan == StartState::Demagnetized)
-            .expect("the demagnetized plan is tried");
-        assert_eq!(demagnetized_plan[1], (ModelStart::Demagnetized, false));
-
-        let after = experiment_data(&records, &settles, previous_plan);
-        let from_lead_in = setup.electro_runs(&electro, &after, &[1], &[500]);
-        assert_eq!(from_lead_in[0].m_a_per_m, chained[0].m_a_per_m);
-        // And it is not the demagnetized start the plan had before.
-        let demagnetized = experiment_data(&records, &settles, demagnetized_plan);
-        let cold = setup.electro_runs(&electro, &demagnetized, &[1], &[500]);
-        let differ = cold[0]
-            .m_a_per_m
-            .iter()
-            .zip(&chained[0].m_a_per_m)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        assert!(differ > 0.01 * nominal.saturation_a_per_m, "{differ}");
-    }
-
-    #[test]
-    fn a_reversible_part_is_an_effect_only_when_identified_from_data() {
-        let mut params = actuator_params::paper_defaults();
-        assert!(effects_identified_into(&params).is_empty());
-        // A reversible part the file's author wrote in (params/reversible-part.json): modelled,
-        // not found in data, so not an effect of the rig.
-        params.preisach.reversible_susceptibility = Some(vec![2.0; params.preisach.levels]);
-        assert!(effects_identified_into(&params).is_empty());
-        // As `maglab identify --reversible auto` writes it when it kept the part.
-        params.provenance.details.insert(
-            actuator_params::Provenance::IDENTIFIED.into(),
-            serde_json::json!([
-                "preisach.weights_a_per_m",
-                "preisach.reversible_susceptibility"
-            ]),
-        );
-        assert_eq!(
-            effects_identified_into(&params),
-            vec!["reversible_magnetization".to_string()]
-        );
-        // An identified part that came out zero everywhere is no effect.
-        params.preisach.reversible_susceptibility = Some(vec![0.0; params.preisach.levels]);
-        assert!(effects_identified_into(&params).is_empty());
-    }
-
-    #[test]
-    fn identified_constants_get_the_wide_refit_range_and_given_ones_do_not() {
-        let mut params = actuator_params::paper_defaults();
-        let given = constants_range(&params, candidates::REFIT_RANGE);
-        assert_eq!(given.factors, candidates::REFIT_RANGE);
-        assert!(given.identified_from_data.is_empty());
-        // As `maglab identify` writes it when only the phase-lag scheme ran (f0 not identified).
-        params.provenance.details.insert(
-            actuator_params::Provenance::IDENTIFIED.into(),
-            serde_json::json!([
-                "preisach.weights_a_per_m",
-                "actuator.eddy_resistance_ohm",
-                "actuator.damping_ratio"
-            ]),
-        );
-        let identified = constants_range(&params, candidates::REFIT_RANGE);
-        assert_eq!(
-            identified.factors,
-            [
-                IDENTIFIED_REFIT_RANGE[0],
-                IDENTIFIED_REFIT_RANGE[1],
-                candidates::REFIT_RANGE[2]
-            ]
-        );
-        assert_eq!(identified.identified_from_data.len(), 2);
-        assert!(identified
-            .reason
-            .contains("actuator.damping_ratio identified from data"));
-    }
-
-    /// A candidate as the ranking holds it, with only what `equal_on_training` reads set.
-    fn candidate(effect: &str, training_rms_m: f64, significant: bool) -> CandidateResult {
-        CandidateResult {
-            effect: effect.into(),
-            parameters: BTreeMap::new(),
-            training_rms_m,
-            held_out_rms_before_m: 1e-6,
-            held_out_rms_after_m: 1e-7,
-            held_out_reduction: 10.0,
-            systematic_before_m: 1e-6,
-            systematic_after_m: 1e-7,
-            improved_experiments: 4,
-            worse_experiments: 0,
-            held_out_experiments: 4,
-            knocked_out_rms_m: 1e-6,
-            pinned: Vec::new(),
-            constants_at_range_end: Vec::new(),
-            significant,
-            per_band: Vec::new(),
-            evaluations: 0,
-        }
-    }
-
-    #[test]
-    fn a_held_out_tie_goes_to_the_fit_with_fewer_constants_at_a_band_end() {
-        // Blind suite seed 8 case 21 (a sensor lag): the load fit 0.3 % better held out, with
-        // f0 at the end of its band; the sensor fit with none there.
-        let with = |effect: &str, held_out_m: f64, significant: bool, at_end: &[&str]| {
-            let mut c = candidate(effect, 1e-7, significant);
-            c.held_out_rms_after_m = held_out_m;
-            c.constants_at_range_end = at_end.iter().map(|s| s.to_string()).collect();
-            c
-        };
-        let load = with("mechanical_load", 1.174e-7, true, &["resonance_hz"]);
-        let sensor = with("sensor_dynamics", 1.177e-7, true, &[]);
-        let amplifier = with("amplifier_bandwidth", 1.471e-7, true, &[]);
-        let unfit = with("delta_e_effect", 1.0e-7, false, &[]);
-        let significant = |r: &CandidateResult| r.significant;
-        let tie = |preferred, tied: &[usize]| {
-            Some(TieIndices {
-                preferred,
-                tied: tied.to_vec(),
-            })
-        };
-        // The tie is broken for the sensor; the ineligible front entry stays where it is and is
-        // not in the tie.
-        let order = [&unfit, &load, &sensor, &amplifier];
-        assert_eq!(held_out_tie_break(&order, significant), tie(2, &[1, 2]));
-        // Outside 1 % there is no tie: the amplifier, with nothing at an end, does not move up.
-        let order = [&load, &amplifier];
-        assert_eq!(held_out_tie_break(&order, significant), tie(0, &[0]));
-        // Equal counts keep the held-out order.
-        let sensor_at_end = with("sensor_dynamics", 1.177e-7, true, &["resonance_hz"]);
-        let order = [&load, &sensor_at_end];
-        assert_eq!(held_out_tie_break(&order, significant), tie(0, &[0, 1]));
-        // Nothing eligible: nothing to break.
-        assert_eq!(held_out_tie_break(&[&unfit], significant), None);
-    }
-
-    #[test]
-    fn equal_on_training_lists_significant_candidates_within_one_percent_only() {
-        // Seed 1 case 5 identified (training RMS within 0.3 % of one another), plus a candidate
-        // 2 % worse and one as good but not significant.
-        let winner = candidate("mechanical_load", 1.000e-7, true);
-        let ranking = [
-            winner.clone(),
-            candidate("sensor_dynamics", 1.003e-7, true),
-            candidate("amplifier_bandwidth", 0.995e-7, true),
-            candidate("delta_e_effect", 1.02e-7, true),
-            candidate("thermal_drift", 1.0e-7, false),
-        ];
-        assert_eq!(
-            equal_on_training(&winner, ranking.iter()),
-            ["sensor_dynamics", "amplifier_bandwidth"]
-        );
-        assert!(equal_on_training(&winner, std::iter::once(&winner)).is_empty());
-    }
 }

@@ -233,7 +233,8 @@ pub struct ElectroRun {
 /// `powf`, which were 12 % of the blind suite's time (`perf` on `blind_suite 1 12`); the slope
 /// reuses `q^(−1/p)`. Within 1e-13 (relative) of the `powf` form (test
 /// `reversible_term_matches_the_powf_form`).
-fn reversible(rev: Option<(f64, f64, f64)>, h: f64) -> (f64, f64) {
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn reversible(rev: Option<(f64, f64, f64)>, h: f64) -> (f64, f64) {
     match rev {
         Some((chi, hs, p)) if chi > 0.0 => {
             let x = (h / hs).abs();
@@ -479,7 +480,8 @@ pub fn run_electro(
 /// (state `[x, c, c(δ) − c(0)]` in the time `t/δ`), computed by nalgebra's Padé
 /// scaling-and-squaring (Al-Mohy & Higham), accurate to a few ulps of the entries.
 #[derive(Debug, Clone, Copy)]
-struct LinearStep<const N: usize> {
+#[doc(hidden)] // public for tests/internals.rs only
+pub struct LinearStep<const N: usize> {
     phi: [[f64; N]; N],
     g0: [f64; N],
     g1: [f64; N],
@@ -511,7 +513,7 @@ impl<const N: usize> LinearStep<N> {
         step
     }
 
-    fn step(&self, x: [f64; N], c0: f64, c1: f64) -> [f64; N] {
+    pub fn step(&self, x: [f64; N], c0: f64, c1: f64) -> [f64; N] {
         let d = c1 - c0;
         let mut out = [0.0; N];
         for (i, o) in out.iter_mut().enumerate() {
@@ -527,7 +529,8 @@ impl<const N: usize> LinearStep<N> {
 
 /// Exact discretization of `x'' = ω²(c − x) − 2ζω x'` (state `[x, x']`) over a step `δ` with
 /// `c` linear over it: the amplifier and the sensor low-pass.
-fn second_order(omega: f64, zeta: f64, delta: f64) -> LinearStep<2> {
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn second_order(omega: f64, zeta: f64, delta: f64) -> LinearStep<2> {
     LinearStep::new(
         [[0.0, 1.0], [-omega * omega, -2.0 * zeta * omega]],
         [0.0, omega * omega],
@@ -858,7 +861,8 @@ fn observe_with_sensor(
 
 /// Cubic Hermite interpolation of `(value, rate)` samples spaced `delta`, at time `t` (clamped
 /// to the sampled span).
-fn hermite(value: &[f64], rate: &[f64], delta: f64, t: f64) -> f64 {
+#[doc(hidden)] // public for tests/internals.rs only
+pub fn hermite(value: &[f64], rate: &[f64], delta: f64, t: f64) -> f64 {
     let last = value.len() - 1;
     let pos = (t / delta).clamp(0.0, last as f64);
     let i = (pos.floor() as usize).min(last.saturating_sub(1));
@@ -913,286 +917,4 @@ pub fn chained_temperature(mech: &Mech, history: &[&[f64]], step_s: f64) -> (f64
         }
     }
     (theta, phi)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The nominal constants and the Preisach measure of the paper's parameters.
-    fn paper_model() -> (Nominal, PreisachMeasure) {
-        let params = actuator_params::paper_defaults();
-        let core = magctl::params::ActuatorParameters::from_file(&params, "defaults").unwrap();
-        (Nominal::from_params(&params), core.preisach.measure())
-    }
-
-    /// The `exp`/`ln` form of the reversible term against the textbook `powf` form, over the
-    /// candidate's ranges of shape and saturation field and fields from 0 to 10 H_s.
-    #[test]
-    fn reversible_term_matches_the_powf_form() {
-        let (chi, hs) = (0.3, 20_000.0);
-        let mut worst = 0.0f64;
-        for p in [0.5, 1.0, 2.0, 3.7, 8.0] {
-            for k in 0..=400 {
-                let h = (k as f64 - 200.0) / 20.0 * hs;
-                let q: f64 = 1.0 + (h / hs).abs().powf(p);
-                let term = chi * h * q.powf(-1.0 / p);
-                let slope = chi * q.powf(-1.0 / p - 1.0);
-                let (t, s) = reversible(Some((chi, hs, p)), h);
-                worst = worst
-                    .max((t - term).abs() / (chi * hs))
-                    .max((s - slope).abs() / chi);
-            }
-        }
-        assert!(worst < 1e-13, "largest relative difference {worst:.2e}");
-        assert_eq!(reversible(Some((chi, hs, 2.0)), 0.0), (0.0, chi));
-        assert_eq!(reversible(None, 1e4), (0.0, 0.0));
-    }
-
-    /// The largest absolute difference between two runs.
-    fn max_difference(a: &[f64], b: &[f64]) -> f64 {
-        a.iter()
-            .zip(b)
-            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-    }
-
-    #[test]
-    fn second_order_step_tracks_a_ramp_and_settles() {
-        // A critically damped 2nd-order low-pass driven by a ramp lags it by 2ζ/ω in steady state.
-        let (omega, zeta, delta) = (2.0 * PI * 500.0, 1.0, 1e-5);
-        let lp = second_order(omega, zeta, delta);
-        let mut x = [0.0, 0.0];
-        let mut c = 0.0;
-        for _ in 0..20_000 {
-            x = lp.step(x, c, c + delta);
-            c += delta;
-        }
-        assert!((c - x[0] - 2.0 * zeta / omega).abs() < 1e-9, "{}", c - x[0]);
-        // c accumulates 20 000 rounding errors, so the slope is only good to ~1e-9.
-        assert!((x[1] - 1.0).abs() < 1e-8, "{}", x[1]);
-    }
-
-    #[test]
-    fn linear_mechanics_as_a_matrix_equal_the_rk4_loop() {
-        // ΔE with zero coefficients takes the RK4 loop with the same stiffness; without ΔE the
-        // same substep runs as its matrix. Both must agree to rounding, with and without the
-        // load mode and the thermal input.
-        let (nominal, measure) = paper_model();
-        let step_s = 1e-4;
-        let currents: Vec<f64> = (0..2000)
-            .map(|k| 0.3 + 0.25 * (2.0 * PI * 150.0 * k as f64 * step_s).sin())
-            .collect();
-        let run = run_electro(
-            &nominal,
-            &measure,
-            &Electro::nominal(nominal.eddy_resistance_ohm),
-            &currents,
-            step_s,
-            Interpolation::Linear,
-            &ModelStart::SwitchOnDemagnetized,
-            None,
-            2,
-        );
-        for (load, second_load, thermal) in [
-            (None, None, None),
-            (Some((0.4, 900.0, 0.2)), None, None),
-            (Some((0.4, 900.0, 0.2)), Some((0.5, 2500.0, 0.1)), None),
-            (None, None, Some((0.3, 0.2, 0.01, 0.02))),
-        ] {
-            let mut mech = Mech::nominal(0.6, nominal.resonance_hz);
-            mech.load = load;
-            mech.second_load = second_load;
-            mech.thermal = thermal;
-            let matrix = run_mech(&nominal, &mech, &run, currents.len(), step_s, (0.0, 0.0));
-            mech.delta_e = Some((0.0, 0.0, 0.0, 0.0));
-            let looped = run_mech(&nominal, &mech, &run, currents.len(), step_s, (0.0, 0.0));
-            let scale = looped.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            let worst = max_difference(&matrix, &looped);
-            assert!(
-                worst <= 1e-12 * scale,
-                "{load:?} {thermal:?}: {worst:e} of {scale:e}"
-            );
-        }
-    }
-
-    #[test]
-    fn a_second_load_mass_gives_the_chains_frequency_response() {
-        // Rod, first and second load mass in a chain, the sensor on the first: driven by a
-        // sinusoidal u = k_u M², the steady-state motion of the first load mass must match
-        // the chain's transfer function Y2/U, solved from the three equations of motion (per
-        // unit rod mass, module docs) at s = jω: below, between and above the load's modes.
-        use nalgebra::{Complex, Matrix3, Vector3};
-        let (nominal, measure) = paper_model();
-        let (step_s, substeps, n) = (1e-4, 10usize, 3000usize);
-        let template = run_electro(
-            &nominal,
-            &measure,
-            &Electro::nominal(nominal.eddy_resistance_ohm),
-            &[0.3; 4],
-            step_s,
-            Interpolation::Linear,
-            &ModelStart::SwitchOnDemagnetized,
-            None,
-            1,
-        );
-        let (xi, f0) = (0.3, nominal.resonance_hz);
-        let (r2, f2, z2) = (0.4, 900.0, 0.1);
-        let (r3, f3, z3) = (0.5, 2200.0, 0.08);
-        let mut mech = Mech::nominal(xi, f0);
-        mech.load = Some((r2, f2, z2));
-        mech.second_load = Some((r3, f3, z3));
-        let ms = nominal.saturation_a_per_m;
-        for f_hz in [312.5, 1250.0, 3333.3333333333335] {
-            let w = 2.0 * PI * f_hz;
-            let dt = step_s / substeps as f64;
-            // u / (k_u M_s²) = 0.3 + 0.1 sin(ω t).
-            let run = ElectroRun {
-                substeps,
-                m_a_per_m: (0..=n * substeps)
-                    .map(|j| ms * (0.3 + 0.1 * (w * j as f64 * dt).sin()).sqrt())
-                    .collect(),
-                current_sq_a2: vec![0.0; n * substeps],
-                end_memory: template.end_memory.clone(),
-            };
-            let y = run_mech(&nominal, &mech, &run, n, step_s, (0.0, 0.0));
-            // Amplitude and phase of the last 1000 samples (whole periods), least squares.
-            let tail = n - 1000..n;
-            let (mut ss, mut sc, mut cc, mut ys, mut yc, mut sum) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-            let mean = tail.clone().map(|k| y[k]).sum::<f64>() / 1000.0;
-            for k in tail {
-                let (sn, cs) = (w * k as f64 * step_s).sin_cos();
-                let v = y[k] - mean;
-                ss += sn * sn;
-                sc += sn * cs;
-                cc += cs * cs;
-                ys += v * sn;
-                yc += v * cs;
-                sum += v;
-            }
-            assert!(sum.abs() < 1e-9);
-            let det = ss * cc - sc * sc;
-            let (b_sin, b_cos) = ((ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det);
-            let measured =
-                Complex::new(b_sin, b_cos) / (0.1 * nominal.displacement_per_m2_m * ms * ms);
-            // Y = A⁻¹ B U with s = jω.
-            let s_ = Complex::new(0.0, w);
-            let mode = |f: f64, z: f64| {
-                let wm = 2.0 * PI * f;
-                (wm * wm, 2.0 * z * wm)
-            };
-            let (w0, d0) = mode(f0, xi);
-            let (k2, c2) = mode(f2, z2);
-            let (k3, c3) = mode(f3, z3);
-            let e2 = s_ * c2 + k2;
-            let e3 = s_ * c3 + k3;
-            let zero = Complex::new(0.0, 0.0);
-            let a = Matrix3::new(
-                s_ * s_ + s_ * d0 + w0 + e2 * r2,
-                -e2 * r2,
-                zero,
-                -e2,
-                s_ * s_ + e2 + e3 * r3,
-                -e3 * r3,
-                zero,
-                -e3,
-                s_ * s_ + e3,
-            );
-            let b = Vector3::new(Complex::new(w0, 0.0), zero, zero);
-            let expected = a.lu().solve(&b).unwrap()[1];
-            // The response to sin(ωt) is |H| sin(ωt + ∠H) = Re(H) sin + Im(H) cos. Measured
-            // on this drive: 0.01 %, 0.05 % and 0.4 % off (u is linear between substeps).
-            let error = (measured - expected).norm() / expected.norm();
-            assert!(
-                error < 0.01,
-                "{f_hz} Hz: measured {measured} expected {expected} ({:.2} %)",
-                100.0 * error
-            );
-        }
-    }
-
-    /// `Z(jω)` of the Foster form [`eddy_paths`] returns.
-    fn impedance(z_hf: f64, paths: &[Option<(f64, f64)>; 2], f_hz: f64) -> f64 {
-        let w = 2.0 * PI * f_hz;
-        let (mut re, mut im) = (z_hf, 0.0);
-        for (tau, dz) in paths.iter().flatten() {
-            let d = 1.0 + (w * tau).powi(2);
-            re += dz / d;
-            im -= dz * w * tau / d;
-        }
-        (re * re + im * im).sqrt()
-    }
-
-    #[test]
-    fn two_eddy_paths_step_the_resistance_at_each_corner_in_either_order() {
-        // R = 1/Z steps up 3x at 10 Hz and 2x at 10 kHz: Z_dc, Z_dc/3 between the corners
-        // (a decade and a half from each: within 5 %), Z_dc/6 above both.
-        let z_dc = 1.0e-3;
-        for (first, second) in [((3.0, 10.0), (2.0, 1.0e4)), ((2.0, 1.0e4), (3.0, 10.0))] {
-            let (z_hf, paths) = eddy_paths(z_dc, Some(first), Some(second));
-            assert!((z_hf - z_dc / 6.0).abs() < 1e-15);
-            assert!((impedance(z_hf, &paths, 0.0) - z_dc).abs() < 1e-15);
-            let mid = impedance(z_hf, &paths, 316.0);
-            assert!(
-                (mid * 3.0 / z_dc - 1.0).abs() < 0.05,
-                "{}",
-                mid * 3.0 / z_dc
-            );
-            let top = impedance(z_hf, &paths, 1.0e7);
-            assert!((top * 6.0 / z_dc - 1.0).abs() < 0.01);
-        }
-        // One path: Z_hf = Z_dc / ratio; none: Z_dc.
-        let (z_hf, paths) = eddy_paths(z_dc, Some((4.0, 50.0)), None);
-        assert!((z_hf - z_dc / 4.0).abs() < 1e-15 && paths[1].is_none());
-        assert_eq!(eddy_paths(z_dc, None, None), (z_dc, [None, None]));
-    }
-
-    #[test]
-    fn a_second_eddy_path_that_steps_nothing_is_the_one_path_model() {
-        // Its share of Z is zero, so the two-path step (the general κ) must reproduce the
-        // one-path step to rounding.
-        let (nominal, measure) = paper_model();
-        let step_s = 1e-4;
-        let currents: Vec<f64> = (0..1500)
-            .map(|k| 0.3 + 0.25 * (2.0 * PI * 220.0 * k as f64 * step_s).sin())
-            .collect();
-        let run = |e: &Electro| {
-            run_electro(
-                &nominal,
-                &measure,
-                e,
-                &currents,
-                step_s,
-                Interpolation::Linear,
-                &ModelStart::SwitchOnDemagnetized,
-                None,
-                2,
-            )
-            .m_a_per_m
-        };
-        let mut one = Electro::nominal(nominal.eddy_resistance_ohm);
-        one.eddy_path = Some((3.0, 150.0));
-        let mut two = one;
-        two.second_eddy_path = Some((1.0, 2000.0));
-        let (a, b) = (run(&one), run(&two));
-        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let worst = max_difference(&a, &b);
-        assert!(worst <= 1e-6 * scale, "{worst:e} of {scale:e}");
-        // And the second path does act when it steps R.
-        two.second_eddy_path = Some((2.0, 300.0));
-        let c = run(&two);
-        let moved = max_difference(&a, &c);
-        assert!(moved > 1e-3 * scale, "{moved:e} of {scale:e}");
-    }
-
-    #[test]
-    fn hermite_is_exact_for_cubics() {
-        let f = |t: f64| 1.0 + 2.0 * t - 3.0 * t * t + 0.5 * t * t * t;
-        let df = |t: f64| 2.0 - 6.0 * t + 1.5 * t * t;
-        let d = 0.1;
-        let v: Vec<f64> = (0..10).map(|k| f(k as f64 * d)).collect();
-        let r: Vec<f64> = (0..10).map(|k| df(k as f64 * d)).collect();
-        for t in [0.03, 0.44, 0.77] {
-            assert!((hermite(&v, &r, d, t) - f(t)).abs() < 1e-12);
-        }
-    }
 }

@@ -213,38 +213,3 @@ pub fn branch_labels(x: &[f64]) -> BranchLabels {
         near_reversal: near,
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn noise_level_of_white_noise_with_a_harmonic() {
-        use rand::SeedableRng;
-        use rand_distr::{Distribution, Normal};
-        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
-        let normal = Normal::new(0.0, 2.0).unwrap();
-        let x: Vec<f64> = (0..10000)
-            .map(|k| normal.sample(&mut rng) + 5.0 * (2.0 * PI * 0.37 * k as f64).sin())
-            .collect();
-        let s = white_noise_sigma(&x);
-        // ~3500 bins: the median's relative standard error is ~1/sqrt(3500)·1.4 ≈ 2.5 %; allow 10 %.
-        assert!((s - 2.0).abs() < 0.2, "{s}");
-    }
-
-    #[test]
-    fn fundamental_and_labels_of_a_sine() {
-        let rate = 10_000.0;
-        let x: Vec<f64> = (0..5000)
-            .map(|k| 0.5 + 0.3 * (2.0 * PI * 50.0 * k as f64 / rate).sin())
-            .collect();
-        let f = dominant_frequency_hz(&x, rate).unwrap();
-        assert!((f - 50.0).abs() < 0.5, "{f}");
-        let r = whole_periods(100, 5000, 50.0, rate);
-        let c = fourier_coefficient(&x, r, 50.0, rate);
-        assert!((c.norm() - 0.3).abs() < 1e-9, "{c}");
-        let labels = branch_labels(&x);
-        assert!(labels.ascending[10] && !labels.ascending[60]);
-        assert!(labels.near_reversal[50] && !labels.near_reversal[100]);
-    }
-}

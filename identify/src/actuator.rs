@@ -590,18 +590,3 @@ fn provenance(
         details: d,
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::shifted;
-
-    #[test]
-    fn shifted_reads_later_samples_linearly_and_holds_the_ends() {
-        let x = [0.0, 1.0, 4.0, 9.0];
-        assert_eq!(shifted(&x, 0.0), x.to_vec());
-        assert_eq!(shifted(&x, 1.0), vec![1.0, 4.0, 9.0, 9.0]);
-        assert_eq!(shifted(&x, -1.0), vec![0.0, 0.0, 1.0, 4.0]);
-        assert_eq!(shifted(&x, 0.5), vec![0.5, 2.5, 6.5, 9.0]);
-        assert!(shifted(&[], 0.3).is_empty());
-    }
-}

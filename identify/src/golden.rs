@@ -35,20 +35,3 @@ pub fn golden_section_min(
     }
     0.5 * (lo + hi)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn finds_the_minimum_of_a_parabola_to_the_bracket_width() {
-        let x = golden_section_min(-1.0, 3.0, 40, |x| (x - 0.7).powi(2));
-        assert!((x - 0.7).abs() < 4.0 * 0.62f64.powi(40) + 1e-9, "{x}");
-    }
-
-    #[test]
-    fn a_minimum_at_the_edge_is_approached() {
-        let x = golden_section_min(0.0, 1.0, 30, |x| x);
-        assert!(x < 1e-5, "{x}");
-    }
-}

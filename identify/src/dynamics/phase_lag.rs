@@ -309,25 +309,3 @@ pub fn phase_lag_scheme_scanning_f0(
         })
         .ok_or(at_file)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn damping_inverts_the_second_order_phase() {
-        for &(xi, r) in &[(0.65f64, 0.1f64), (0.78, 0.5), (0.2, 0.9), (0.5, 1.5)] {
-            // Phase of 1 / (1 - r² + 2iξr).
-            let theta = (2.0 * xi * r).atan2(1.0 - r * r);
-            assert!((damping_from_lag(theta, r) - xi).abs() < 1e-12);
-        }
-    }
-
-    #[test]
-    fn the_mesh_is_geometric_up_to_r_bar() {
-        let m = coarse_mesh(500.0, 40);
-        assert!((m[0] - 1.0).abs() < 1e-12 && (m[39] - 500.0).abs() < 1e-9);
-        let ratio = m[1] / m[0];
-        assert!(m.windows(2).all(|w| (w[1] / w[0] - ratio).abs() < 1e-9));
-    }
-}

@@ -1,0 +1,364 @@
+//! The tests of `maglab-identify`'s modules, one module here per module there (they were `#[cfg(test)]`
+//! modules in the source files). They live in one integration test so that `cargo test` does
+//! not compile the crate a second time with `cfg(test)`: at `opt-level = 3` (the fits the other
+//! tests run need it) that build cost ~60-70 s of CPU in every clean CI run (`Cargo.toml`,
+//! `[lib] test = false`). The few internals they call are `#[doc(hidden)] pub`.
+
+mod actuator {
+    use maglab_identify::actuator::shifted;
+
+    #[test]
+    fn shifted_reads_later_samples_linearly_and_holds_the_ends() {
+        let x = [0.0, 1.0, 4.0, 9.0];
+        assert_eq!(shifted(&x, 0.0), x.to_vec());
+        assert_eq!(shifted(&x, 1.0), vec![1.0, 4.0, 9.0, 9.0]);
+        assert_eq!(shifted(&x, -1.0), vec![0.0, 0.0, 1.0, 4.0]);
+        assert_eq!(shifted(&x, 0.5), vec![0.5, 2.5, 6.5, 9.0]);
+        assert!(shifted(&[], 0.3).is_empty());
+    }
+}
+mod drift {
+    use maglab_identify::drift::*;
+
+    /// A triangle sweep between ±2 A, `periods` periods at 1 Hz, sampled at 1 kHz, and a
+    /// hysteretic displacement: a play (backlash) operator of half-width 0.3 A on the current,
+    /// through a static nonlinearity, times `gain(t)`.
+    fn sweep(periods: usize, gain: impl Fn(f64) -> f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let n = periods * 1000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let i: Vec<f64> = t
+            .iter()
+            .map(|&t| {
+                let p = t.fract();
+                // Starts at -2 A, up to +2 A at half a period, back down.
+                if p < 0.5 {
+                    -2.0 + 8.0 * p
+                } else {
+                    6.0 - 8.0 * p
+                }
+            })
+            .collect();
+        let mut play: f64 = -1.7;
+        let y: Vec<f64> = t
+            .iter()
+            .zip(&i)
+            .map(|(&t, &i)| {
+                play = play.max(i - 0.3).min(i + 0.3);
+                gain(t) * 30e-6 * (play / 1.7).powi(2).min(1.0)
+            })
+            .collect();
+        (t, i, y)
+    }
+
+    #[test]
+    fn visits_count_only_after_the_other_extreme() {
+        let (t, i, y) = sweep(3, |_| 1.0);
+        let [top, bottom] = extreme_visits(&t, &i, &y);
+        assert_eq!(top.visits.len(), 3);
+        // The start at -2 A comes before any visit to +2 A: not counted.
+        assert_eq!(bottom.visits.len(), 2);
+        assert!(top.spread_m() < 1e-12 && bottom.spread_m() < 1e-12);
+    }
+
+    #[test]
+    fn a_rate_independent_record_gets_no_warning() {
+        let (t, i, y) = sweep(5, |_| 1.0);
+        assert_eq!(drift_warning("forc.csv", &t, &i, &y), None);
+        // Noise below the limit neither.
+        let noisy: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(k, y)| y + 0.1e-6 * ((k * 7919 % 1000) as f64 / 500.0 - 1.0))
+            .collect();
+        assert_eq!(drift_warning("forc.csv", &t, &i, &noisy), None);
+    }
+
+    #[test]
+    fn a_slow_gain_change_is_named_with_its_figures() {
+        // The gain falls by 10 % over 5 s (a rod warming up).
+        let (t, i, y) = sweep(5, |t| 1.0 - 0.02 * t);
+        let w = drift_warning("forc.csv", &t, &i, &y).expect("a warning");
+        assert!(w.starts_with("forc.csv: at 2.000 A"), "{w}");
+        assert!(w.contains("5 visits"), "{w}");
+        // 30 µm × 0.02/s × 4 s between the first and the last visit = 2.4 µm, 8 % of 30 µm.
+        assert!(w.contains("(5 visits; 8.0 %"), "{w}");
+    }
+
+    #[test]
+    fn degenerate_records_are_no_warning() {
+        assert_eq!(drift_warning("x.csv", &[], &[], &[]), None);
+        let t = [0.0, 1.0, 2.0];
+        assert_eq!(
+            drift_warning("x.csv", &t, &[1.0; 3], &[2.0, 3.0, 4.0]),
+            None
+        );
+        assert_eq!(
+            drift_warning("x.csv", &t, &[0.0, 1.0, 0.0], &[5.0; 3]),
+            None
+        );
+    }
+}
+mod golden {
+    use maglab_identify::golden::*;
+
+    #[test]
+    fn finds_the_minimum_of_a_parabola_to_the_bracket_width() {
+        let x = golden_section_min(-1.0, 3.0, 40, |x| (x - 0.7).powi(2));
+        assert!((x - 0.7).abs() < 4.0 * 0.62f64.powi(40) + 1e-9, "{x}");
+    }
+
+    #[test]
+    fn a_minimum_at_the_edge_is_approached() {
+        let x = golden_section_min(0.0, 1.0, 30, |x| x);
+        assert!(x < 1e-5, "{x}");
+    }
+}
+mod lines {
+    use maglab_identify::design::{Experiment, Grid};
+    use maglab_identify::lines::*;
+    use maglab_identify::memory::InitialState;
+
+    fn experiment<'a>(input: &'a [f64], output: &'a [f64], selected: &'a [bool]) -> Experiment<'a> {
+        Experiment {
+            label: "loop",
+            input,
+            output,
+            selected,
+            initial: InitialState::Periodic,
+            weights: None,
+        }
+    }
+
+    /// A steep loop (output changing over a tenth of the range) gets most of its lines there; a
+    /// linear response gets equal intervals (to sampling); no change gives the uniform grid.
+    #[test]
+    fn lines_follow_the_output_change() {
+        let n = 2001;
+        let input: Vec<f64> = (0..n)
+            .map(|t| 100.0 * (2.0 * std::f64::consts::PI * t as f64 / (n - 1) as f64).sin())
+            .collect();
+        let steep: Vec<f64> = input.iter().map(|&u| (u / 5.0).tanh()).collect();
+        let linear: Vec<f64> = input.iter().map(|&u| 0.01 * u).collect();
+        let flat = vec![1.0; n];
+        let selected = vec![true; n];
+        let g = choose_grid(
+            -110.0,
+            110.0,
+            LineChoice::EqualOutput,
+            &[experiment(&input, &steep, &selected)],
+        );
+        let lines = g.lines();
+        let inside = lines.iter().filter(|h| h.abs() <= 11.0).count();
+        assert!(inside >= 12, "{lines:?}");
+        let widths: Vec<f64> = lines.windows(2).map(|w| w[1] - w[0]).collect();
+        let min = widths.iter().cloned().fold(f64::INFINITY, f64::min);
+        assert!(min >= MIN_INTERVAL_FRACTION * g.cell_width() * (1.0 - 1e-12));
+        let g = choose_grid(
+            -100.0,
+            100.0,
+            LineChoice::EqualOutput,
+            &[experiment(&input, &linear, &selected)],
+        );
+        for (k, h) in g.lines().iter().enumerate() {
+            let expected = -100.0 + 8.0 * k as f64;
+            assert!((h - expected).abs() < 2.0, "line {k}: {h} vs {expected}");
+        }
+        let g = choose_grid(
+            -100.0,
+            100.0,
+            LineChoice::EqualOutput,
+            &[experiment(&input, &flat, &selected)],
+        );
+        assert_eq!(g, Grid::uniform(-100.0, 100.0));
+        assert_eq!(
+            choose_grid(-1.0, 1.0, LineChoice::Uniform, &[]),
+            Grid::uniform(-1.0, 1.0)
+        );
+        assert_eq!(
+            LineChoice::parse("equal-output"),
+            Ok(LineChoice::EqualOutput)
+        );
+        assert!(LineChoice::parse("equal").unwrap_err().contains("`equal`"));
+    }
+
+    /// Two folds whatever the number of experiments; in each the fit and predicted rows split
+    /// the selected rows of every experiment in blocks, and the two folds swap them.
+    #[test]
+    fn folds_alternate_blocks_of_every_experiment() {
+        for experiments in [1usize, 2, 5] {
+            let rows: Vec<Vec<bool>> = (0..experiments + 1)
+                // (the last experiment has no fit rows: in no fold)
+                .map(|e| (0..400).map(|t| e < experiments && t % 3 != 0).collect())
+                .collect();
+            let selected: Vec<&[bool]> = rows.iter().map(|r| r.as_slice()).collect();
+            let folds = validation_folds(&selected);
+            assert_eq!(folds.len(), 2);
+            for (e, row) in rows.iter().enumerate() {
+                for (t, &selected_row) in row.iter().enumerate() {
+                    let (fit0, pred0) = (folds[0].0[e][t], folds[0].1[e][t]);
+                    assert!(!(fit0 && pred0));
+                    assert_eq!(fit0 || pred0, selected_row);
+                    assert_eq!((folds[1].0[e][t], folds[1].1[e][t]), (pred0, fit0));
+                }
+                let fitted = row.iter().zip(&folds[0].0[e]).filter(|p| *p.1).count();
+                let total = row.iter().filter(|&&x| x).count();
+                assert!(
+                    total == 0 || (fitted * 2).abs_diff(total) <= total / 10,
+                    "{e}"
+                );
+            }
+        }
+        assert!(validation_folds(&[&[false; 10]]).is_empty());
+    }
+}
+mod quality {
+    use maglab_identify::actuator::FileReport;
+    use maglab_identify::quality::*;
+
+    fn file(nrmse: f64, above: usize) -> FileReport {
+        FileReport {
+            file: "00_forc.csv".into(),
+            samples: 1000,
+            clipped_negative: 0,
+            above_stroke: above,
+            sign_changes: 1,
+            nrmse_magnetization: Some(nrmse),
+            nrmse_displacement: Some(nrmse),
+            h_a_per_m: Vec::new(),
+            m_measured_a_per_m: Vec::new(),
+            m_predicted_a_per_m: Vec::new(),
+        }
+    }
+
+    fn sine(hz: f64, nrmse: f64) -> DynamicResidual {
+        DynamicResidual {
+            file: format!("sine_{hz}.csv"),
+            frequency_hz: hz,
+            nrmse,
+        }
+    }
+
+    #[test]
+    fn a_model_that_fits_gets_no_warning() {
+        // The figures of a case without an effect (seed 1, case 4).
+        let dynamic = [sine(20.0, 0.029), sine(100.0, 0.012), sine(400.0, 0.3)];
+        let w = warnings(&[file(0.003, 160)], 7.87e5, 7.87e5, &dynamic, Some(200.0));
+        assert!(w.is_empty(), "{w:?}");
+    }
+
+    #[test]
+    fn each_limit_is_named_when_crossed() {
+        let w = warnings(&[file(0.77, 710)], 1.2e5, 7.87e5, &[], None);
+        assert_eq!(w.len(), 2, "{w:?}");
+        assert!(w[0].contains("00_forc.csv") && w[0].contains("77.0 %") && w[0].contains("71 %"));
+        assert!(w[1].contains("0.15 x M_s"));
+        let dynamic = [sine(20.0, 0.42), sine(50.0, 0.12), sine(400.0, 0.01)];
+        let w = warnings(&[file(0.003, 0)], 7.87e5, 7.87e5, &dynamic, Some(200.0));
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("sine_20.csv at 20 Hz, 42.0 %"), "{w:?}");
+    }
+
+    #[test]
+    fn experiments_above_the_fitted_band_are_not_judged() {
+        // The held-out band may disagree: that is the diagnosis' business.
+        let dynamic = [sine(20.0, 0.01), sine(300.0, 0.9), sine(400.0, 0.9)];
+        assert!(warnings(&[], 7.87e5, 7.87e5, &dynamic, Some(200.0)).is_empty());
+        assert_eq!(warnings(&[], 7.87e5, 7.87e5, &dynamic, None).len(), 1);
+    }
+
+    #[test]
+    fn a_constant_at_an_end_of_its_search_is_named_with_that_end() {
+        let centre = [98.0, 0.584, 470.4];
+        let factors = [10.0, 5.0, 2.0];
+        // A noise-only identification (seed 3 case 18): inside.
+        assert!(search_bound_warnings([71.15, 0.7958, 403.1], centre, factors).is_empty());
+        // A 200 Hz sensor lag absorbed (seed 3 case 30): R_eddy and f0 at their floors.
+        let w = search_bound_warnings([9.81, 0.3781, 235.2], centre, factors);
+        assert_eq!(w.len(), 2, "{w:?}");
+        assert!(
+            w[0].starts_with("R_eddy = 9.8100 ohm lies at the lower end"),
+            "{w:?}"
+        );
+        assert!(w[0].contains("98.0000 ohm / 10 = 9.8000 ohm"), "{w:?}");
+        assert!(
+            w[1].starts_with("f0 = 235.2000 Hz lies at the lower end"),
+            "{w:?}"
+        );
+        // The upper end, and 1 % inside it is still at it; 2 % inside is not.
+        let w = search_bound_warnings([98.0, 2.914, 470.4], centre, factors);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].starts_with("xi = 2.9140 lies at the upper end"),
+            "{w:?}"
+        );
+        assert!(search_bound_warnings([98.0, 2.86, 470.4], centre, factors).is_empty());
+    }
+}
+mod spectrum {
+    use maglab_identify::spectrum::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn a_biased_sine_with_harmonics_gives_its_frequency_and_phase() {
+        let step = 1e-4;
+        let f = 47.3;
+        let x: Vec<f64> = (0..6000)
+            .map(|k| {
+                let t = k as f64 * step;
+                2.0 + 0.7 * (2.0 * PI * f * t + 0.4).sin() + 0.3 * (4.0 * PI * f * t + 1.0).cos()
+            })
+            .collect();
+        let tone = dominant_tone(&x, step).unwrap();
+        // Bin = 1/0.6 s = 1.67 Hz; the interpolation lands within 5 % of a bin.
+        assert!(
+            (tone.frequency_hz - f).abs() < 0.05 * tone.bin_hz,
+            "{tone:?}"
+        );
+        assert!(tone.tonal_fraction > 0.7, "{tone:?}");
+        let refined = refine_frequency(&x, step, &tone, 3);
+        assert!((refined - f).abs() < 1e-6, "{refined}");
+        let fit = harmonic_fit(&x, step, refined, 0..x.len(), 3).unwrap();
+        assert!((fit.amplitude() - 0.7).abs() < 1e-6);
+        assert!((fit.phase_rad() - 0.4).abs() < 1e-6);
+        assert!((fit.mean - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_reversal_sequence_is_not_tonal() {
+        // Reversals of decreasing amplitude at a constant sweep rate (like a FORC excitation):
+        // the half-period shrinks with the amplitude, so the power spreads over many bins.
+        let mut x = Vec::new();
+        for a in (1..=20).rev() {
+            let amp = a as f64;
+            let n = 10 * a;
+            for k in 0..n {
+                x.push(-amp + 2.0 * amp * k as f64 / n as f64);
+            }
+            for k in 0..n {
+                x.push(amp - 2.0 * amp * k as f64 / n as f64);
+            }
+        }
+        let tone = dominant_tone(&x, 1e-3).unwrap();
+        assert!(tone.tonal_fraction < 0.9, "{tone:?}");
+    }
+}
+mod dynamics_phase_lag {
+    use maglab_identify::dynamics::phase_lag::*;
+
+    #[test]
+    fn damping_inverts_the_second_order_phase() {
+        for &(xi, r) in &[(0.65f64, 0.1f64), (0.78, 0.5), (0.2, 0.9), (0.5, 1.5)] {
+            // Phase of 1 / (1 - r² + 2iξr).
+            let theta = (2.0 * xi * r).atan2(1.0 - r * r);
+            assert!((damping_from_lag(theta, r) - xi).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn the_mesh_is_geometric_up_to_r_bar() {
+        let m = coarse_mesh(500.0, 40);
+        assert!((m[0] - 1.0).abs() < 1e-12 && (m[39] - 500.0).abs() < 1e-9);
+        let ratio = m[1] / m[0];
+        assert!(m.windows(2).all(|w| (w[1] / w[0] - ratio).abs() < 1e-9));
+    }
+}
