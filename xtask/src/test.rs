@@ -74,74 +74,38 @@ pub fn steps() -> Vec<Step> {
                 "warnings",
             ],
         ),
-        Step::cargo(
-            "clippy_fw",
-            "no clippy warnings in the firmware and board code (QEMU board, Cortex-M4F target)",
-            &[
-                "clippy",
-                "-p",
-                "magctl",
-                "--target",
-                FIRMWARE_TARGET,
-                "--features",
-                "board-mps2-an386",
-                "--bins",
-                "--",
-                "-D",
-                "warnings",
-            ],
-        ),
-        Step::cargo(
-            "clippy_nucleo",
-            "no clippy warnings in the firmware and board code (NUCLEO-F446RE)",
-            &[
-                "clippy",
-                "-p",
-                "magctl",
-                "--target",
-                FIRMWARE_TARGET,
-                "--features",
-                "board-nucleo-f446re",
-                "--bins",
-                "--",
-                "-D",
-                "warnings",
-            ],
-        ),
-        Step::cargo(
-            "clippy_nucleo_measure",
-            "no clippy warnings in the NUCLEO measurement image (measurement-mode)",
-            &[
-                "clippy",
-                "-p",
-                "magctl",
-                "--target",
-                FIRMWARE_TARGET,
-                "--features",
-                "board-nucleo-f446re,measurement-mode",
-                "--bins",
-                "--",
-                "-D",
-                "warnings",
-            ],
-        ),
+        Step {
+            name: "clippy_fw",
+            purpose: "no clippy warnings in the firmware and board code (QEMU board, Cortex-M4F target, release as flashed)",
+            action: Action::Func(|ctx| firmware_cargo(ctx, &clippy_bins("board-mps2-an386"))),
+        },
+        Step {
+            name: "clippy_nucleo",
+            purpose: "no clippy warnings in the firmware and board code (NUCLEO-F446RE, release as flashed)",
+            action: Action::Func(|ctx| firmware_cargo(ctx, &clippy_bins("board-nucleo-f446re"))),
+        },
+        Step {
+            name: "clippy_nucleo_measure",
+            purpose: "no clippy warnings in the NUCLEO measurement image (measurement-mode, release as flashed)",
+            action: Action::Func(|ctx| {
+                firmware_cargo(ctx, &clippy_bins("board-nucleo-f446re,measurement-mode"))
+            }),
+        },
         Step {
             name: "test",
             purpose: "unit, integration and property tests of every crate (the blind suite is started here, beside them and the steps after, and awaited by `blind_suite`)",
             action: Action::Func(test_workspace),
         },
-        Step::cargo(
-            "no_std",
-            "the core type-checks for the Cortex-M4F target without std, with its default features (every firmware image below compiles it too)",
-            &[
-                "check",
-                "-p",
-                "magctl",
-                "--lib",
-                "--target",
-                FIRMWARE_TARGET,
-            ],
-        ),
+        Step {
+            name: "no_std",
+            purpose: "the core type-checks for the Cortex-M4F target without std, with its default features (every firmware image below compiles it too)",
+            action: Action::Func(|ctx| {
+                firmware_cargo(
+                    ctx,
+                    &["check", "-p", "magctl", "--lib", "--release", "--target", FIRMWARE_TARGET],
+                )
+            }),
+        },
         Step {
             name: "docs",
             purpose: "relative links and figures in the Markdown files exist",
@@ -177,6 +141,37 @@ pub fn steps() -> Vec<Step> {
             action: Action::Func(await_blind_suite),
         },
     ]
+}
+
+/// `cargo clippy` of the firmware binaries with `features` (`--release`: the lints see the
+/// configuration that is flashed), for [`firmware_cargo`].
+fn clippy_bins(features: &str) -> Vec<&str> {
+    vec![
+        "clippy",
+        "-p",
+        "magctl",
+        "--release",
+        "--target",
+        FIRMWARE_TARGET,
+        "--features",
+        features,
+        "--bins",
+        "--",
+        "-D",
+        "warnings",
+    ]
+}
+
+/// `cargo <args>` for the firmware target in the firmware builds' own target directory and with
+/// their `DEFMT_LOG` ([`crate::qemu::build_bin`]): the build-script and proc-macro units it
+/// compiles for the host (syn, serde, defmt's and cortex-m-rt's macros, ~25 units) are then the
+/// ones the release builds of `qemu`, `hil` and `nucleo` reuse. In the dev profile and `target/`,
+/// as these steps ran before, every unit was compiled for the lints and again for the images.
+fn firmware_cargo(ctx: &Ctx, args: &[&str]) -> Result<()> {
+    let mut cmd = ctx.cargo(args);
+    cmd.env("CARGO_TARGET_DIR", crate::qemu::firmware_dir(ctx))
+        .env("DEFMT_LOG", "info");
+    run_checked(cmd)
 }
 
 /// The blind suite's test (`diagnose/tests/blind_suite.rs`): the one test `test` leaves out of
