@@ -48,13 +48,19 @@ impl Ctx {
     }
 }
 
-/// The command line as a user would type it (program name without its directory).
+/// The command line as a user would type it: the variables it sets in the environment
+/// (`NAME=value`, so that a line copied from the log runs the same build, e.g. the firmware's
+/// `CARGO_TARGET_DIR` and `DEFMT_LOG`), the program name without its directory, its arguments.
 pub fn display(cmd: &Command) -> String {
     let program = Path::new(cmd.get_program())
         .file_name()
         .map(|p| p.to_string_lossy().into_owned())
         .unwrap_or_default();
-    std::iter::once(program)
+    cmd.get_envs()
+        .filter_map(|(name, value)| {
+            value.map(|v| format!("{}={}", name.to_string_lossy(), v.to_string_lossy()))
+        })
+        .chain(std::iter::once(program))
         .chain(cmd.get_args().map(|a| a.to_string_lossy().into_owned()))
         .collect::<Vec<_>>()
         .join(" ")
@@ -98,4 +104,21 @@ pub fn find_on_path(name: &str) -> Option<PathBuf> {
 /// Seconds with one decimal, for summaries.
 pub fn secs(d: std::time::Duration) -> String {
     format!("{:.1} s", d.as_secs_f64())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_displayed_command_sets_its_environment_first() {
+        let mut cmd = Command::new("/usr/bin/cargo");
+        cmd.args(["build", "--release"])
+            .env("CARGO_TARGET_DIR", "target/firmware")
+            .env_remove("RUSTFLAGS");
+        assert_eq!(
+            display(&cmd),
+            "CARGO_TARGET_DIR=target/firmware cargo build --release"
+        );
+    }
 }
