@@ -125,24 +125,36 @@ fn build(ctx: &Ctx, features: &str) -> Command {
     build_bin(ctx, "firmware-qemu", features)
 }
 
-/// `cargo build --release` of firmware binary `bin` for the Cortex-M4F target into
-/// `target/firmware/` (its own directory, so host builds never rebuild it), `DEFMT_LOG=info`.
-pub fn build_bin(ctx: &Ctx, bin: &str, features: &str) -> Command {
-    let mut cmd = ctx.cargo(&[
-        "build",
-        "-p",
-        "magctl",
-        "--release",
-        "--target",
-        TARGET,
-        "--features",
-        features,
-        "--bin",
-        bin,
-    ]);
+/// `cargo <args>` as every firmware build runs: in `target/firmware/` (its own directory, so
+/// host builds never rebuild it) with `DEFMT_LOG=info`. The firmware lints and the `no_std`
+/// check of `cargo xtask test` run through it too, so the host units they compile (build
+/// scripts, syn, serde, defmt's and cortex-m-rt's macros) are the ones the image builds reuse;
+/// a second copy of this environment that drifted would silently compile them twice.
+pub fn firmware_cargo(ctx: &Ctx, args: &[&str]) -> Command {
+    let mut cmd = ctx.cargo(args);
     cmd.env("CARGO_TARGET_DIR", firmware_dir(ctx))
         .env("DEFMT_LOG", "info");
     cmd
+}
+
+/// `cargo build --release` of firmware binary `bin` for the Cortex-M4F target with `features`
+/// ([`firmware_cargo`]).
+pub fn build_bin(ctx: &Ctx, bin: &str, features: &str) -> Command {
+    firmware_cargo(
+        ctx,
+        &[
+            "build",
+            "-p",
+            "magctl",
+            "--release",
+            "--target",
+            TARGET,
+            "--features",
+            features,
+            "--bin",
+            bin,
+        ],
+    )
 }
 
 /// `timeout TIMEOUT qemu-system-arm` on mps2-an386 (Cortex-M4F) with semihosting (`semi`: the

@@ -162,16 +162,12 @@ fn clippy_bins(features: &str) -> Vec<&str> {
     ]
 }
 
-/// `cargo <args>` for the firmware target in the firmware builds' own target directory and with
-/// their `DEFMT_LOG` ([`crate::qemu::build_bin`]): the build-script and proc-macro units it
-/// compiles for the host (syn, serde, defmt's and cortex-m-rt's macros, ~25 units) are then the
-/// ones the release builds of `qemu`, `hil` and `nucleo` reuse. In the dev profile and `target/`,
-/// as these steps ran before, every unit was compiled for the lints and again for the images.
+/// `cargo <args>` for the firmware target, in the firmware builds' environment
+/// ([`crate::qemu::firmware_cargo`]): the host units the lints and the `no_std` check compile
+/// (~25: syn, serde, defmt's and cortex-m-rt's macros) are the ones the release builds of
+/// `qemu`, `hil` and `nucleo` reuse.
 fn firmware_cargo(ctx: &Ctx, args: &[&str]) -> Result<()> {
-    let mut cmd = ctx.cargo(args);
-    cmd.env("CARGO_TARGET_DIR", crate::qemu::firmware_dir(ctx))
-        .env("DEFMT_LOG", "info");
-    run_checked(cmd)
+    run_checked(crate::qemu::firmware_cargo(ctx, args))
 }
 
 /// The blind suite's test (`diagnose/tests/blind_suite.rs`): the one test `test` leaves out of
