@@ -45,7 +45,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-pub const TARGET: &str = "thumbv7em-none-eabihf";
+/// The firmware's target triple (one definition: `setup` installs it, every build here uses it).
+pub use crate::setup::FIRMWARE_TARGET as TARGET;
 const RECORD_BYTES: usize = 40;
 /// SysTick ticks per instruction under `-icount shift=10` on the 25 MHz mps2: 1024 ns × 25 MHz.
 const TICKS_PER_INSTRUCTION: f64 = 25.6;

@@ -10,6 +10,7 @@
 //! idle scheduling class; confined to one core during the QEMU lock-step steps) and awaited by
 //! the last step, `blind_suite` ([`test_workspace`]); a failure before then stops it.
 
+use crate::qemu::firmware_cargo;
 use crate::setup::{self, FIRMWARE_TARGET};
 use crate::util::{display, run_checked, secs, Ctx};
 use anyhow::{bail, Context, Result};
@@ -77,18 +78,18 @@ pub fn steps() -> Vec<Step> {
         Step {
             name: "clippy_fw",
             purpose: "no clippy warnings in the firmware and board code (QEMU board, Cortex-M4F target, release as flashed)",
-            action: Action::Func(|ctx| firmware_cargo(ctx, &clippy_bins("board-mps2-an386"))),
+            action: Action::Func(|ctx| run_checked(firmware_cargo(ctx, &clippy_bins("board-mps2-an386")))),
         },
         Step {
             name: "clippy_nucleo",
             purpose: "no clippy warnings in the firmware and board code (NUCLEO-F446RE, release as flashed)",
-            action: Action::Func(|ctx| firmware_cargo(ctx, &clippy_bins("board-nucleo-f446re"))),
+            action: Action::Func(|ctx| run_checked(firmware_cargo(ctx, &clippy_bins("board-nucleo-f446re")))),
         },
         Step {
             name: "clippy_nucleo_measure",
             purpose: "no clippy warnings in the NUCLEO measurement image (measurement-mode, release as flashed)",
             action: Action::Func(|ctx| {
-                firmware_cargo(ctx, &clippy_bins("board-nucleo-f446re,measurement-mode"))
+                run_checked(firmware_cargo(ctx, &clippy_bins("board-nucleo-f446re,measurement-mode")))
             }),
         },
         Step {
@@ -100,10 +101,10 @@ pub fn steps() -> Vec<Step> {
             name: "no_std",
             purpose: "the core type-checks for the Cortex-M4F target without std, with its default features (every firmware image below compiles it too)",
             action: Action::Func(|ctx| {
-                firmware_cargo(
+                run_checked(firmware_cargo(
                     ctx,
                     &["check", "-p", "magctl", "--lib", "--release", "--target", FIRMWARE_TARGET],
-                )
+                ))
             }),
         },
         Step {
@@ -144,7 +145,8 @@ pub fn steps() -> Vec<Step> {
 }
 
 /// `cargo clippy` of the firmware binaries with `features` (`--release`: the lints see the
-/// configuration that is flashed), for [`firmware_cargo`].
+/// configuration that is flashed), run with [`firmware_cargo`] (the firmware builds'
+/// environment: the host units the lints compile are the ones the image builds reuse).
 fn clippy_bins(features: &str) -> Vec<&str> {
     vec![
         "clippy",
@@ -160,14 +162,6 @@ fn clippy_bins(features: &str) -> Vec<&str> {
         "-D",
         "warnings",
     ]
-}
-
-/// `cargo <args>` for the firmware target, in the firmware builds' environment
-/// ([`crate::qemu::firmware_cargo`]): the host units the lints and the `no_std` check compile
-/// (~25: syn, serde, defmt's and cortex-m-rt's macros) are the ones the release builds of
-/// `qemu`, `hil` and `nucleo` reuse.
-fn firmware_cargo(ctx: &Ctx, args: &[&str]) -> Result<()> {
-    run_checked(crate::qemu::firmware_cargo(ctx, args))
 }
 
 /// The blind suite's test (`diagnose/tests/blind_suite.rs`): the one test `test` leaves out of
