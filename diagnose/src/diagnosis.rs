@@ -762,6 +762,7 @@ fn diagnose_at(
         step_s,
         interpolation,
         substeps: options.substeps,
+        single_run: false,
     };
     let probe_lens: Vec<usize> = (0..measurements.len())
         .map(|k| (infos[k].settle_samples + options.fit.max_fit_samples).min(measurements[k].len()))

@@ -218,6 +218,7 @@ pub fn identify_dynamics(
         step_s: 1.0 / rate_hz,
         interpolation: Interpolation::Linear,
         substeps: options.substeps,
+        single_run: false,
     };
     // One pass: the nuisances estimated with the model of `constants`, then the fit from
     // `fit_starts` with them.

@@ -473,6 +473,33 @@ pub fn run_electro(
     }
 }
 
+/// The electromagnetic stage from one run with `substeps` substeps per sample, without the
+/// Richardson pair: first order in the step, about a third of [`run_electro`]'s cost. Only the
+/// fit's Jacobian uses it (`crate::fit`'s module docs): a slope, never a residual.
+#[allow(clippy::too_many_arguments)]
+pub fn run_electro_single(
+    nominal: &Nominal,
+    measure: &PreisachMeasure,
+    e: &Electro,
+    currents_a: &[f64],
+    step_s: f64,
+    interp: Interpolation,
+    start: &ModelStart,
+    previous: Option<&Memory>,
+    substeps: usize,
+) -> ElectroRun {
+    let s = substeps.max(1);
+    let (m, i2, end) = electro_once(
+        nominal, measure, e, currents_a, step_s, interp, start, previous, s,
+    );
+    ElectroRun {
+        substeps: s,
+        m_a_per_m: m,
+        current_sq_a2: i2,
+        end_memory: Box::new(end),
+    }
+}
+
 /// Exact discretization of a linear system `x' = A x + B c` over a step `δ` with the input `c`
 /// linear over it (first-order hold): `x(δ) = Φ x(0) + Γ₀ c(0) + Γ₁ (c(δ) − c(0))`.
 ///

@@ -337,6 +337,7 @@ mod diagnosis {
             step_s,
             interpolation: Interpolation::Linear,
             substeps: 1,
+            single_run: false,
         };
         let electro = Electro::nominal(nominal.eddy_resistance_ohm);
         let settles = [0, 0];
