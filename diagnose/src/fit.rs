@@ -19,8 +19,9 @@
 //! the model's own integration error: on a noise-free dataset without an effect
 //! (`lab/tests/diagnose_noise_free.rs`) the amplifier candidate's training RMS ends at 1.95 nm
 //! instead of 1.48 nm (of a 35 µm motion); with noise that difference is far below every
-//! threshold. Measured on the blind suite (release `suite_case 1 N`, user time): 1/6 27.5 ->
-//! 19.9 s, 1/3 40.9 -> 34.0 s, 1/11 52.7 -> 43.0 s, 1/0 29.6 -> 25.8 s, the same verdicts.
+//! threshold. Measured on the blind suite (release `suite_case 1 N`, user time, before and after,
+//! alternating): 1/6 21.5 -> 15.4 s, 1/3 32.2 -> 27.6 s, 1/11 38.5 -> 31.3 s, 1/0 19.3 -> 16.7 s,
+//! the same verdicts.
 //!
 //! Starts: every start is evaluated once and the best (and the second when within 10 % of it)
 //! refined. A candidate with effects is refined twice from each: all parameters at once, and in
