@@ -432,7 +432,7 @@ fn electro_steps<const SECOND_PATH: bool>(
 }
 
 /// The electromagnetic stage (module docs): Richardson combination of runs with `substeps` and
-/// `2 substeps` substeps per sample.
+/// `2 substeps` substeps per sample (the coarse one is [`run_electro_single`]'s).
 #[allow(clippy::too_many_arguments)]
 pub fn run_electro(
     nominal: &Nominal,
@@ -445,9 +445,8 @@ pub fn run_electro(
     previous: Option<&Memory>,
     substeps: usize,
 ) -> ElectroRun {
-    let s = substeps.max(1);
-    let (coarse, i2, _) = electro_once(
-        nominal, measure, e, currents_a, step_s, interp, start, previous, s,
+    let coarse = run_electro_single(
+        nominal, measure, e, currents_a, step_s, interp, start, previous, substeps,
     );
     let (fine, _, end) = electro_once(
         nominal,
@@ -458,18 +457,18 @@ pub fn run_electro(
         interp,
         start,
         previous,
-        2 * s,
+        2 * coarse.substeps,
     );
     let m = coarse
+        .m_a_per_m
         .iter()
         .enumerate()
         .map(|(j, c)| 2.0 * fine[2 * j] - c)
         .collect();
     ElectroRun {
-        substeps: s,
         m_a_per_m: m,
-        current_sq_a2: i2,
         end_memory: Box::new(end),
+        ..coarse
     }
 }
 
