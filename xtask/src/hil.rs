@@ -25,6 +25,7 @@
 //! (the plant's true displacement from its log when it writes one — `maglab hil-plant --log` —,
 //! and the sensor's reading otherwise), and the wall time.
 
+use crate::frame_socket::{queued_bytes, unacknowledged_bytes, FrameSocket, WAKE_BOUND};
 use crate::qemu::{build_bin, decode_defmt, firmware_dir, qemu_command, stats, TARGET};
 use crate::util::{display, run_checked, Ctx};
 use anyhow::{bail, ensure, Context, Result};
@@ -40,6 +41,7 @@ use std::io::{Read, Write};
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -293,7 +295,6 @@ pub fn run_once(
     };
     socket.set_nonblocking(false)?;
     socket.set_nodelay(true)?;
-    wake_per_frame(&socket, COMMAND_FRAME_BYTES)?;
     let mut plant_child = plant
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -307,19 +308,32 @@ pub fn run_once(
     let to_firmware = Arc::new(Mutex::new(socket.try_clone()?));
     let commands: Arc<Mutex<Vec<CommandFrame>>> = Arc::new(Mutex::new(Vec::new()));
     let samples: Arc<Mutex<Vec<Sample>>> = Arc::new(Mutex::new(Vec::new()));
+    let activity = Arc::new(LinkActivity::default());
+    let stalls = watch_stalls(activity.clone(), socket.try_clone()?, started);
 
     // Firmware → plant: copy, decode the command frames (the k-th `C` frame is tick k's).
     let fw_to_plant = {
-        let mut from = socket;
+        let mut from = FrameSocket::new(socket, COMMAND_FRAME_BYTES)?;
         let commands = commands.clone();
         let to_firmware = to_firmware.clone();
         let mut to = plant_in;
+        let activity = activity.clone();
         std::thread::spawn(move || -> Result<()> {
             let mut buf = [0u8; COMMAND_FRAME_BYTES];
             loop {
-                if read_full(&mut from, &mut buf)? == 0 {
+                activity.reading_firmware.store(true, Ordering::Release);
+                let n = from.read_frame(&mut buf)?;
+                activity.reading_firmware.store(false, Ordering::Release);
+                activity
+                    .missed_wakes
+                    .store(from.missed_wakes, Ordering::Release);
+                activity
+                    .split_frames
+                    .store(from.split_frames, Ordering::Release);
+                if n == 0 {
                     return Ok(());
                 }
+                activity.firmware_frames.fetch_add(1, Ordering::AcqRel);
                 let frame = CommandFrame::decode(&buf)
                     .map_err(|e| anyhow::anyhow!("firmware sent a bad frame: {e:?}"))?;
                 if frame.kind == KIND_COMMAND {
@@ -352,13 +366,18 @@ pub fn run_once(
         let mut from = plant_out;
         let inject = run.inject;
         let programme = run.measure.as_ref().map(|(p, _)| p.clone());
+        let activity = activity.clone();
         std::thread::spawn(move || -> Result<()> {
             let mut buf = [0u8; SAMPLE_FRAME_BYTES];
             let mut tick: u32 = 0;
             loop {
-                if read_full(&mut from, &mut buf)? == 0 {
+                activity.reading_plant.store(true, Ordering::Release);
+                let n = read_full(&mut from, &mut buf)?;
+                activity.reading_plant.store(false, Ordering::Release);
+                if n == 0 {
                     return Ok(());
                 }
+                activity.plant_frames.fetch_add(1, Ordering::AcqRel);
                 let mut frame = SampleFrame::decode(&buf, tick as u16)
                     .map_err(|e| anyhow::anyhow!("plant sent a bad frame at tick {tick}: {e:?}"))?;
                 let mut bytes = buf;
@@ -406,6 +425,10 @@ pub fn run_once(
     let output = qemu_child.wait_with_output().context("waiting for QEMU")?;
     let wall_s = started.elapsed().as_secs_f64();
     let exit = output.status.code().unwrap_or(-1);
+    activity.done.store(true, Ordering::Release);
+    let stall_lines = stalls
+        .join()
+        .map_err(|_| anyhow::anyhow!("stall watch thread panicked"))?;
     // QEMU is gone: its socket end is closed, the bridge threads see EOF.
     let fw_result = fw_to_plant
         .join()
@@ -425,6 +448,9 @@ pub fn run_once(
     }
     if batches > 0 {
         println!("  firmware: … {batches} `MEAS` record lines (not shown)");
+    }
+    for l in &stall_lines {
+        println!("{l}");
     }
     let stderr = String::from_utf8_lossy(&output.stderr);
     if !stderr.trim().is_empty() {
@@ -527,6 +553,24 @@ pub fn run_once(
         )?;
     }
     s.push_str(&record_line);
+    let missed = activity.missed_wakes.load(Ordering::Relaxed);
+    let split = activity.split_frames.load(Ordering::Relaxed);
+    if split > 0 {
+        writeln!(
+            s,
+            "  link: {split} command frame(s) read in parts (a wake-up before the whole frame was there)"
+        )?;
+    }
+    if missed > 0 {
+        writeln!(
+            s,
+            "  link: {missed} command frame(s) found queued without a wake-up, taken after the bridge's {} ms bound",
+            WAKE_BOUND.as_millis()
+        )?;
+    }
+    for l in &stall_lines {
+        writeln!(s, "{l}")?;
+    }
     writeln!(s, "  wall time {wall_s:.1} s")?;
     print!("{s}");
     std::fs::write(out_abs.join("summary.txt"), &s)?;
@@ -544,34 +588,87 @@ pub fn run_once(
     })
 }
 
-/// Reads exactly `buf.len()` bytes; 0 at a clean end of stream.
-/// Sets the socket's receive low-water mark (`SO_RCVLOWAT`) to one command frame. QEMU's UART
-/// sends each byte the firmware writes as its own TCP segment: without the mark, the bridge
-/// thread blocked in `read` wakes once per byte (16 wake-ups per frame, each a context switch
-/// when the step shares one core with QEMU); with it, a blocking `read` returns when the whole
-/// frame is there (or at end of stream, with what there is), so the bridge wakes once per tick.
-/// The frames, their order and their bytes are unchanged.
-fn wake_per_frame(socket: &std::net::TcpStream, frame_bytes: usize) -> Result<()> {
-    use std::os::fd::AsRawFd;
-    let mark = libc::c_int::try_from(frame_bytes).context("frame size")?;
-    // SAFETY: `socket` owns a valid descriptor for the call's duration; the option value is a
-    // `c_int` passed by pointer with its exact size, as setsockopt(2) requires.
-    let rc = unsafe {
-        libc::setsockopt(
-            socket.as_raw_fd(),
-            libc::SOL_SOCKET,
-            libc::SO_RCVLOWAT,
-            (&mark as *const libc::c_int).cast(),
-            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-        )
-    };
-    if rc != 0 {
-        return Err(std::io::Error::last_os_error())
-            .context("setsockopt(SO_RCVLOWAT) on QEMU's UART socket");
-    }
-    Ok(())
+/// What the bridge threads are doing, for the stall report ([`watch_stalls`]).
+#[derive(Default)]
+struct LinkActivity {
+    /// Command frames (any kind) read from QEMU's socket.
+    firmware_frames: AtomicUsize,
+    /// Sample frames read from the plant program.
+    plant_frames: AtomicUsize,
+    /// The firmware → plant thread is blocked reading QEMU's socket.
+    reading_firmware: AtomicBool,
+    /// The plant → firmware thread is blocked reading the plant's stdout.
+    reading_plant: AtomicBool,
+    /// Frames the firmware → plant thread found queued without a wake-up
+    /// ([`FrameSocket::missed_wakes`]).
+    missed_wakes: AtomicUsize,
+    /// Command frames that came in more than one copy ([`FrameSocket::split_frames`]).
+    split_frames: AtomicUsize,
+    /// The run is over (QEMU has exited).
+    done: AtomicBool,
 }
 
+/// How long the link may carry no frame in either direction before the bridge reports where
+/// the bytes are (the firmware's own bound, `MAX_LINK_POLLS`, is about 3 s of host time).
+const STALL_REPORT: Duration = Duration::from_millis(500);
+
+/// Watches the bridge while QEMU runs; when no frame has moved for [`STALL_REPORT`], records
+/// one line per stall (and how long it lasted): the frame counts, which bridge thread waits to
+/// read, and the bytes queued in QEMU's socket both ways (received and not read by the bridge;
+/// written by the bridge and not acknowledged by QEMU's end). A stall with a frame's bytes
+/// unread in the socket is the host's, not QEMU's (how the flake `frame_socket` fixes was
+/// found). A stall where the run means one (a plant that takes seconds to start, an injected
+/// silent link) is reported the same way.
+fn watch_stalls(
+    activity: Arc<LinkActivity>,
+    socket: std::net::TcpStream,
+    started: Instant,
+) -> std::thread::JoinHandle<Vec<String>> {
+    std::thread::spawn(move || {
+        let mut reports = Vec::new();
+        let mut last = (usize::MAX, usize::MAX);
+        let mut since = Instant::now();
+        let mut reported = false;
+        while !activity.done.load(Ordering::Acquire) {
+            std::thread::sleep(Duration::from_millis(50));
+            let now = (
+                activity.firmware_frames.load(Ordering::Acquire),
+                activity.plant_frames.load(Ordering::Acquire),
+            );
+            if now != last {
+                if reported {
+                    reports.push(format!(
+                        "    resumed after {:.2} s",
+                        since.elapsed().as_secs_f64()
+                    ));
+                }
+                last = now;
+                since = Instant::now();
+                reported = false;
+                continue;
+            }
+            if reported || since.elapsed() < STALL_REPORT {
+                continue;
+            }
+            reported = true;
+            let (unread, unsent) = (queued_bytes(&socket), unacknowledged_bytes(&socket));
+            reports.push(format!(
+                "  link stall at {:.2} s: no frame for {:.1} s after {} frames from the firmware and {} from the plant; bridge waiting to read: firmware {}, plant {}; QEMU's socket: {} bytes received and unread, {} bytes sent and unacknowledged",
+                started.elapsed().as_secs_f64(),
+                since.elapsed().as_secs_f64(),
+                now.0,
+                now.1,
+                activity.reading_firmware.load(Ordering::Acquire),
+                activity.reading_plant.load(Ordering::Acquire),
+                unread.map_or("?".into(), |n| n.to_string()),
+                unsent.map_or("?".into(), |n| n.to_string()),
+            ));
+        }
+        reports
+    })
+}
+
+/// Reads exactly `buf.len()` bytes; 0 at a clean end of stream.
 fn read_full(from: &mut impl Read, buf: &mut [u8]) -> Result<usize> {
     let mut got = 0;
     while got < buf.len() {
@@ -1119,6 +1216,17 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         f.feedback = feedback;
         let r = run_once(ctx, &elf, Some(&exe), &f)?;
         summary.push_str(&r.summary);
+        // The expected exit status alone would also pass a fault of the run's own before the
+        // injected one (a frame lost at tick 0 once ended the silent run with exit 8 too).
+        let at = match inject {
+            Inject::Nan(t) | Inject::Range(t) | Inject::Silent(t) | Inject::Garbage(t) => t,
+        };
+        ensure!(
+            r.commands >= at as usize,
+            "{name}: the run ended after {} command frames, before the fault injected at tick \
+             {at}: a fault of its own (a lost or late frame)",
+            r.commands
+        );
         let rows = std::fs::read_to_string(f.out.join("link.csv"))?;
         // The last tick the firmware commanded (a row may hold only a plant sample).
         let last = rows

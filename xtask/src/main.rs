@@ -21,6 +21,7 @@
 
 mod demo;
 mod doclinks;
+mod frame_socket;
 mod fuzz;
 mod hil;
 mod nucleo;
