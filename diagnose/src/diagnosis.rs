@@ -1086,7 +1086,6 @@ fn diagnose_at(
     let mut pair_winner: Option<(CandidateResult, Scored, Vec<EffectName>)> = None;
     let mut pairs_tie: Option<HeldOutTie> = None;
     let mut single_refits: Vec<PlanFit> = Vec::new();
-    let mut richer_alone: Option<PlanFit> = None;
     if gap0 > none_floor && run_pairs {
         let mut tops: Vec<usize> = (0..ranked.len())
             .filter(|&i| ranked[i].0.pinned.is_empty())
@@ -1248,6 +1247,7 @@ fn diagnose_at(
         // and miss the top band (seed 7 case 26 of the blind suite: a five-path ladder with a
         // reversible term was `unexplained`; with two paths the pair leaves 12 %).
         let best_pair_training = pairs.first().map_or(0.0, |p| p.0.training_rms_m);
+        let mut richer_alone: Option<PlanFit> = None;
         if pair_winner.is_none() && specific {
             let richer = (0..pairs.len())
                 .filter(|&p| {
@@ -1327,7 +1327,7 @@ fn diagnose_at(
         // taken up by the single candidates (seed 21 case 21 of the blind suite: a five-path
         // ladder whose one-path fit pinned its ratio, 2 % left, `unexplained`; amplifier + two
         // paths left 23 %, the amplifier not needed).
-        if let Some(alone) = richer_alone.take() {
+        if let Some(alone) = richer_alone {
             let sc = scorer.predict(&alone);
             let result = scorer.result(&alone, &sc, &base);
             if result.significant {

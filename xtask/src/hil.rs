@@ -318,20 +318,15 @@ pub fn run_once(
         let to_firmware = to_firmware.clone();
         let mut to = plant_in;
         let activity = activity.clone();
-        std::thread::spawn(move || -> Result<()> {
+        // Ends with the reader, whose counts the run reports.
+        std::thread::spawn(move || -> Result<FrameSocket> {
             let mut buf = [0u8; COMMAND_FRAME_BYTES];
             loop {
                 activity.reading_firmware.store(true, Ordering::Release);
                 let n = from.read_frame(&mut buf)?;
                 activity.reading_firmware.store(false, Ordering::Release);
-                activity
-                    .missed_wakes
-                    .store(from.missed_wakes, Ordering::Release);
-                activity
-                    .split_frames
-                    .store(from.split_frames, Ordering::Release);
                 if n == 0 {
-                    return Ok(());
+                    return Ok(from);
                 }
                 activity.firmware_frames.fetch_add(1, Ordering::AcqRel);
                 let frame = CommandFrame::decode(&buf)
@@ -354,7 +349,7 @@ pub fn run_once(
                         .lock()
                         .map_err(|_| anyhow::anyhow!("poisoned"))?
                         .write_all(&ack.encode());
-                    return Ok(());
+                    return Ok(from);
                 }
             }
         })
@@ -435,7 +430,7 @@ pub fn run_once(
         .map_err(|_| anyhow::anyhow!("bridge thread panicked"))?;
     let plant_status = wait_with_timeout(&mut plant_child, Duration::from_secs(20))?;
     let _ = plant_to_fw.join();
-    fw_result?;
+    let frames = fw_result?;
 
     let log_lines = decode_defmt(&std::fs::read(elf)?, &output.stdout).unwrap_or_default();
     let mut batches = 0usize;
@@ -449,9 +444,28 @@ pub fn run_once(
     if batches > 0 {
         println!("  firmware: … {batches} `MEAS` record lines (not shown)");
     }
-    for l in &stall_lines {
-        println!("{l}");
+    // The link's report, printed here (a run that fails below still shows it) and kept in
+    // `summary.txt`.
+    let mut link_report = String::new();
+    if frames.split_frames > 0 {
+        writeln!(
+            link_report,
+            "  link: {} command frame(s) read in parts (a wake-up before the whole frame was there)",
+            frames.split_frames
+        )?;
     }
+    if frames.missed_wakes > 0 {
+        writeln!(
+            link_report,
+            "  link: {} command frame(s) found queued without a wake-up, taken after the bridge's {} ms bound",
+            frames.missed_wakes,
+            WAKE_BOUND.as_millis()
+        )?;
+    }
+    for l in &stall_lines {
+        writeln!(link_report, "{l}")?;
+    }
+    print!("{link_report}");
     let stderr = String::from_utf8_lossy(&output.stderr);
     if !stderr.trim().is_empty() {
         println!("  qemu stderr: {}", stderr.trim());
@@ -553,26 +567,9 @@ pub fn run_once(
         )?;
     }
     s.push_str(&record_line);
-    let missed = activity.missed_wakes.load(Ordering::Relaxed);
-    let split = activity.split_frames.load(Ordering::Relaxed);
-    if split > 0 {
-        writeln!(
-            s,
-            "  link: {split} command frame(s) read in parts (a wake-up before the whole frame was there)"
-        )?;
-    }
-    if missed > 0 {
-        writeln!(
-            s,
-            "  link: {missed} command frame(s) found queued without a wake-up, taken after the bridge's {} ms bound",
-            WAKE_BOUND.as_millis()
-        )?;
-    }
-    for l in &stall_lines {
-        writeln!(s, "{l}")?;
-    }
     writeln!(s, "  wall time {wall_s:.1} s")?;
     print!("{s}");
+    s.push_str(&link_report);
     std::fs::write(out_abs.join("summary.txt"), &s)?;
     ensure!(
         exit == run.expect_exit,
@@ -595,15 +592,10 @@ struct LinkActivity {
     firmware_frames: AtomicUsize,
     /// Sample frames read from the plant program.
     plant_frames: AtomicUsize,
-    /// The firmware → plant thread is blocked reading QEMU's socket.
+    /// The firmware → plant thread is waiting to read QEMU's socket.
     reading_firmware: AtomicBool,
-    /// The plant → firmware thread is blocked reading the plant's stdout.
+    /// The plant → firmware thread is waiting to read the plant's stdout.
     reading_plant: AtomicBool,
-    /// Frames the firmware → plant thread found queued without a wake-up
-    /// ([`FrameSocket::missed_wakes`]).
-    missed_wakes: AtomicUsize,
-    /// Command frames that came in more than one copy ([`FrameSocket::split_frames`]).
-    split_frames: AtomicUsize,
     /// The run is over (QEMU has exited).
     done: AtomicBool,
 }
