@@ -106,6 +106,13 @@ fn identify_then_diagnose(rig_args: &[&str]) {
         serde_json::json!([]),
         "{lags}"
     );
+    // The masses and the constants were fitted in turn until a pass moved no constant by more
+    // than 0.5 % (lab/src/cmd_identify.rs, `alternate_passes`): the alternation settled.
+    let passes = lags["passes"].as_array().expect("passes listed");
+    let last_moved = passes[passes.len() - 1]["moved_from_pass_before"]
+        .as_f64()
+        .expect("moved_from_pass_before");
+    assert!(passes.len() >= 2 && last_moved <= 0.005, "{lags}");
     let a = &id["actuator"];
     let rel = |key: &str, true_value: f64| {
         let v = a[key].as_f64().expect(key);
