@@ -996,7 +996,9 @@ fn alternate_passes(
             .as_ref()
             .map_or(f64::INFINITY, |(_, _, best, _)| rms(best));
         let diverging = rms(&fit) > PASSES_DIVERGING * best_rms;
-        if rms(&fit) < best_rms {
+        // The second pass is kept whatever its residual (a non-finite one included) until a
+        // later pass does better.
+        if chosen.is_none() || rms(&fit) < best_rms {
             chosen = Some((pass, masses, fit.clone(), record));
         }
         if moved <= PASSES_SETTLED || diverging {
@@ -1004,7 +1006,8 @@ fn alternate_passes(
         }
         previous = fit;
     }
-    let (pass, masses, fit, record) = chosen.ok_or_else(|| anyhow!("no pass after the first"))?;
+    let (pass, masses, fit, record) =
+        chosen.ok_or_else(|| anyhow!("internal: MAX_PASSES leaves no pass after the first"))?;
     let c = fit_constants(&fit);
     println!(
         "R_eddy, ξ, f0: {:.2} Ω, {:.4}, {:.1} Hz from pass {pass} of {} (the lowest RMS NRMSE; \
