@@ -904,10 +904,15 @@ fn alternate_passes(
     let based = base_constants(base);
     let range = maglab_diagnose::identification::IDENTIFICATION_RANGE;
     let rms = |fit: &DynamicFit| fit.refined.as_ref().map_or(f64::INFINITY, |r| r.rms_nrmse);
+    // Each pass's record names the lags its masses were corrected with as the provenance
+    // always did (`eddy_resistance_ohm`, `damping_ratio`, `resonance_hz`).
+    let first_fitted = fit_constants(&first);
     let mut records = vec![serde_json::json!({
         "pass": 1,
-        "masses_lags": based,
-        "fitted": fit_constants(&first),
+        "eddy_resistance_ohm": based[0],
+        "damping_ratio": based[1],
+        "resonance_hz": based[2],
+        "fitted": first_fitted,
         "rms_nrmse": rms(&first),
     })];
     let mut previous = first;
@@ -984,7 +989,9 @@ fn alternate_passes(
         );
         let record = serde_json::json!({
             "pass": pass,
-            "masses_lags": lags,
+            "eddy_resistance_ohm": lags[0],
+            "damping_ratio": lags[1],
+            "resonance_hz": lags[2],
             "base_file_value_kept_for": kept,
             "current_shift_samples": shift,
             "fitted": fitted,
@@ -1016,14 +1023,11 @@ fn alternate_passes(
         c[1],
         c[2],
         records.len(),
-        records[0]["fitted"][0].as_f64().unwrap_or(f64::NAN),
-        records[0]["fitted"][1].as_f64().unwrap_or(f64::NAN),
-        records[0]["fitted"][2].as_f64().unwrap_or(f64::NAN),
+        first_fitted[0],
+        first_fitted[1],
+        first_fitted[2],
     );
     let mut record = record;
-    record["eddy_resistance_ohm"] = serde_json::json!(record["masses_lags"][0]);
-    record["damping_ratio"] = serde_json::json!(record["masses_lags"][1]);
-    record["resonance_hz"] = serde_json::json!(record["masses_lags"][2]);
     record["passes"] = serde_json::Value::Array(records);
     Ok(ChosenPass {
         masses,
