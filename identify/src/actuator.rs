@@ -80,6 +80,12 @@ pub struct FileReport {
     pub above_stroke: usize,
     /// Sign changes of M assigned by the monotone rule.
     pub sign_changes: usize,
+    /// White-noise level of the displacement, m ([`displacement_noise_m`]).
+    pub noise_m: f64,
+    /// Rows whose `u` lies below this are left out of the regression, m ([`fit_floor_m`]).
+    pub fit_floor_m: f64,
+    /// Selected rows left out by that floor.
+    pub rows_below_floor: usize,
     /// NRMSE of the predicted magnetization.
     pub nrmse_magnetization: Option<f64>,
     /// NRMSE of the predicted displacement (static model (6)).
@@ -182,6 +188,21 @@ impl LagCorrection {
             .collect()
     }
 
+    /// How much [`LagCorrection::displacement`] amplifies white noise in `y`: the RMS of its
+    /// output for white noise of unit RMS (the root sum of squares of its impulse response, away
+    /// from the record's ends).
+    pub fn noise_gain(&self, step_s: f64) -> f64 {
+        let w = Self::half_width(step_s);
+        let n = 8 * w + 1;
+        let mut impulse = vec![0.0; n];
+        impulse[n / 2] = 1.0;
+        self.displacement(&impulse, step_s)
+            .iter()
+            .map(|v| v * v)
+            .sum::<f64>()
+            .sqrt()
+    }
+
     /// `H` from the current and the (signed) magnetization.
     pub fn field(&self, current_a: &[f64], m_a_per_m: &[f64], step_s: f64) -> Vec<f64> {
         let w = Self::half_width(step_s);
@@ -195,6 +216,42 @@ impl LagCorrection {
             })
             .collect()
     }
+}
+
+/// The white-noise level of a record's displacement, m: from its second differences
+/// `y[k+1] − 2 y[k] + y[k−1]`, whose noise is `√6 σ` and whose signal is nil on a slow record but
+/// at its reversals — hence the median absolute deviation (`σ = 1.4826 · MAD / √6`), which the
+/// few reversal samples do not move. 0 for fewer than 3 samples.
+pub fn displacement_noise_m(y: &[f64]) -> f64 {
+    let mut d2: Vec<f64> = y
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    if d2.is_empty() {
+        return 0.0;
+    }
+    let mid = d2.len() / 2;
+    let (_, median, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * *median / 6f64.sqrt()
+}
+
+/// Largest relative bias of `|M| = M_s √(u / (l_m λ_s))` that a fitted row may carry from the
+/// noise of `u`. The square root is concave, so noise of RMS `σ_u` biases it low by
+/// `σ_u² / (8 u²)` of itself (second order): near `M = 0`, on the steep branch around the coercive
+/// field, that is percents, the masses there come out low and R_eddy, ξ, f0 bend to make up for
+/// it (measured on `maglab rig` folders: R_eddy +8.2 % at σ = 0.5 µm with the fixed zero band,
+/// +2.5 % with this bound, +1.4 % without noise; README, "The sweep's rows near M = 0").
+pub const SQRT_NOISE_BIAS_MAX: f64 = 0.001;
+
+/// The fit floor never passes this fraction of the stroke `l_m λ_s` (`|M| = 0.32 M_s`): a record
+/// so noisy, or sampled so coarsely that its own curvature reads as noise, keeps its rows above.
+pub const FIT_FLOOR_MAX_FRACTION: f64 = 0.1;
+
+/// The smallest `u` (m) whose row enters the regression: the zero band (`zero_band_m`: below it
+/// the sign of `M` is uncertain) or, when the noise is larger, where the square root's noise bias
+/// reaches [`SQRT_NOISE_BIAS_MAX`]: `u = σ_u / √(8 · SQRT_NOISE_BIAS_MAX)` ≈ 11 σ_u.
+pub fn fit_floor_m(zero_band_m: f64, noise_u_m: f64) -> f64 {
+    zero_band_m.max(noise_u_m / (8.0 * SQRT_NOISE_BIAS_MAX).sqrt())
 }
 
 /// The sensor offset, m: in a bipolar quasi-static record the magnetization crosses zero, where
@@ -314,6 +371,8 @@ pub fn identify(
     let mut labels = Vec::new();
     let mut initials = Vec::new();
     let mut displacements: Vec<Vec<f64>> = Vec::new();
+    let mut noises_m = Vec::new();
+    let mut floors_m = Vec::new();
     let mut choices = Vec::new();
     for m in &dataset.measurements {
         let correction = options.lag_correction.map(|c| LagCorrection::new(base, c));
@@ -324,6 +383,14 @@ pub fn identify(
             .iter()
             .map(|y| y - sensor_offset_m.unwrap_or(0.0))
             .collect();
+        let noise_m = displacement_noise_m(&y);
+        let gain = correction.map_or(1.0, |c| c.noise_gain(m.step_s));
+        noises_m.push(noise_m);
+        floors_m.push(
+            fit_floor_m(zero_band_m, gain * noise_m)
+                .min(FIT_FLOOR_MAX_FRACTION * model.stroke_m())
+                .max(zero_band_m),
+        );
         let displacement = match &correction {
             Some(c) => c.displacement(&y, m.step_s),
             None => y,
@@ -372,13 +439,16 @@ pub fn identify(
         fields.push(h);
         conversions.push(conv);
     }
-    // Rows whose |M| lies inside the zero band are left out of the regression: there the sign of
-    // M is uncertain and M = M_s √(y/S) turns the sensor noise into tens of kA/m (dM/dy grows
-    // as 1/√y). The memory still sees them.
-    let m_band = model.saturation_magnetization_a_per_m * options.zero_band_fraction.sqrt();
+    // Rows whose |M| lies below the fit floor are left out of the regression: inside the zero
+    // band the sign of M is uncertain, and near zero M = M_s √(u/S) turns the sensor noise into
+    // tens of kA/m (dM/du grows as 1/√u) with a bias (`fit_floor_m`). The memory still sees them.
     let selected: Vec<Vec<bool>> = conversions
         .iter()
-        .map(|c| c.m_a_per_m.iter().map(|m| m.abs() >= m_band).collect())
+        .zip(&floors_m)
+        .map(|(c, &floor)| {
+            let m_band = model.saturation_magnetization_a_per_m * (floor / model.stroke_m()).sqrt();
+            c.m_a_per_m.iter().map(|m| m.abs() >= m_band).collect()
+        })
         .collect();
     let experiments: Vec<Experiment<'_>> = (0..fields.len())
         .map(|k| Experiment {
@@ -442,6 +512,18 @@ pub fn identify(
             clipped_negative: conversions[k].clipped_negative,
             above_stroke: conversions[k].above_stroke,
             sign_changes: conversions[k].sign_changes,
+            noise_m: noises_m[k],
+            fit_floor_m: floors_m[k],
+            rows_below_floor: {
+                let band = model.saturation_magnetization_a_per_m
+                    * (zero_band_m / model.stroke_m()).sqrt();
+                conversions[k]
+                    .m_a_per_m
+                    .iter()
+                    .zip(&selected[k])
+                    .filter(|(m, &kept)| !kept && m.abs() >= band)
+                    .count()
+            },
             nrmse_magnetization: nrmse(&m_pred, &conversions[k].m_a_per_m, None),
             nrmse_displacement: nrmse(&y_pred, &displacements[k], None),
             h_a_per_m: fields[k].clone(),
@@ -502,6 +584,9 @@ fn provenance(
                 "negative_displacement_clipped_to_zero": f.clipped_negative,
                 "above_full_stroke": f.above_stroke,
                 "sign_changes_of_m": f.sign_changes,
+                "displacement_noise_m": f.noise_m,
+                "fit_floor_m": f.fit_floor_m,
+                "rows_below_fit_floor_outside_zero_band": f.rows_below_floor,
                 "nrmse_magnetization": f.nrmse_magnetization,
                 "nrmse_displacement": f.nrmse_displacement,
             }))
@@ -553,6 +638,11 @@ fn provenance(
             "output": "M = +/- M_s sqrt(y / (l_m lambda_s)) (static model (6))",
             "branch_and_initial_state_per_file": choices,
             "zero_band_fraction_of_stroke": options.zero_band_fraction,
+            "fit_floor": format!(
+                "rows with u below max(zero band, sigma_u / sqrt(8 * {SQRT_NOISE_BIAS_MAX})) are \
+                 left out: sigma_u (the noise of u after the lag correction) biases \
+                 M = M_s sqrt(u/S) low by sigma_u^2 / (8 u^2) of itself"
+            ),
             "regression": "M = sum_k w_k (2 f_k - 1), f_k = exact fraction of cell k in P+, \
                            w >= 0, clarabel QP",
             "smoothness": options.fit.smoothness,

@@ -16,6 +16,82 @@ mod actuator {
         assert_eq!(shifted(&x, 0.5), vec![0.5, 2.5, 6.5, 9.0]);
         assert!(shifted(&[], 0.3).is_empty());
     }
+
+    use maglab_identify::actuator::{
+        displacement_noise_m, fit_floor_m, LagCorrection, SQRT_NOISE_BIAS_MAX,
+    };
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    /// White noise of RMS `sigma_m`, `n` samples, from `seed`.
+    fn white(n: usize, sigma_m: f64, seed: u64) -> Vec<f64> {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let normal = Normal::new(0.0, sigma_m).unwrap();
+        (0..n).map(|_| normal.sample(&mut rng)).collect()
+    }
+
+    #[test]
+    fn the_noise_of_a_slow_sweep_is_read_within_3_percent_whatever_its_reversals() {
+        // A 1 Hz triangle of 60 µm at 10 kHz (reversals every 0.5 s) plus white noise.
+        let n = 30_000;
+        for (k, sigma) in [0.05e-6, 0.125e-6, 0.5e-6].into_iter().enumerate() {
+            let noise = white(n, sigma, 7 + k as u64);
+            let y: Vec<f64> = (0..n)
+                .map(|i| {
+                    let p = (i as f64 * 1e-4).fract();
+                    60e-6 * if p < 0.5 { 2.0 * p } else { 2.0 - 2.0 * p } + noise[i]
+                })
+                .collect();
+            let read = displacement_noise_m(&y);
+            assert!(
+                (read / sigma - 1.0).abs() < 0.03,
+                "σ = {sigma:e} m read as {read:e} m"
+            );
+        }
+        assert_eq!(displacement_noise_m(&[1.0, 2.0]), 0.0);
+        // A noise-free ramp has no noise.
+        let ramp: Vec<f64> = (0..1000).map(|i| i as f64 * 1e-8).collect();
+        assert!(displacement_noise_m(&ramp) < 1e-20);
+    }
+
+    #[test]
+    fn the_lag_correction_amplifies_white_noise_by_its_noise_gain() {
+        let base = actuator_params::paper_defaults();
+        let correction = LagCorrection::new(&base, [70.0, 0.7783, 392.0]);
+        let step_s = 1e-4;
+        let gain = correction.noise_gain(step_s);
+        let noise = white(200_000, 1.0, 3);
+        let u = correction.displacement(&noise, step_s);
+        // Away from the ends, where the derivatives are not taken.
+        let inner = &u[100..u.len() - 100];
+        let rms = (inner.iter().map(|v| v * v).sum::<f64>() / inner.len() as f64).sqrt();
+        assert!(gain > 1.0, "gain {gain}");
+        assert!((rms / gain - 1.0).abs() < 0.01, "RMS {rms}, gain {gain}");
+    }
+
+    #[test]
+    fn at_the_fit_floor_the_square_root_is_biased_by_at_most_its_bound() {
+        // No noise: the zero band alone.
+        assert_eq!(fit_floor_m(0.67e-6, 0.0), 0.67e-6);
+        // Noise: E[√(u + n)] against √u at the floor, by Monte Carlo (n Gaussian, 10⁶ draws).
+        let sigma = 0.5e-6;
+        let floor = fit_floor_m(0.67e-6, sigma);
+        assert!(
+            floor > 10.0 * sigma && floor < 12.0 * sigma,
+            "floor {floor:e} m"
+        );
+        let draws = white(1_000_000, sigma, 5);
+        let mean = draws
+            .iter()
+            .map(|n| (floor + n).max(0.0).sqrt())
+            .sum::<f64>()
+            / draws.len() as f64;
+        let bias = 1.0 - mean / floor.sqrt();
+        assert!(
+            bias > 0.7 * SQRT_NOISE_BIAS_MAX && bias < 1.2 * SQRT_NOISE_BIAS_MAX,
+            "relative bias {bias:e} at the floor"
+        );
+    }
 }
 mod drift {
     use maglab_identify::drift::*;
@@ -222,6 +298,9 @@ mod quality {
             clipped_negative: 0,
             above_stroke: above,
             sign_changes: 1,
+            noise_m: 0.0,
+            fit_floor_m: 0.0,
+            rows_below_floor: 0,
             nrmse_magnetization: Some(nrmse),
             nrmse_displacement: Some(nrmse),
             h_a_per_m: Vec::new(),

@@ -64,7 +64,10 @@ pub struct Args {
     /// saturates itself; a closed record is periodic; else demagnetized at zero current).
     #[arg(long)]
     initial: Option<String>,
-    /// Zero band of the monotone sign rule, fraction of the full stroke l_m λ_s.
+    /// Zero band of the monotone sign rule, fraction of the full stroke l_m λ_s. Rows inside it
+    /// are left out of the mass fit, and so are rows whose displacement lies below ≈ 11 times
+    /// the record's own noise (after the lag correction) when that is higher: the square root
+    /// M = M_s √(u/S) of a noisy u is biased low there (printed per record as the fit floor).
     #[arg(long, default_value_t = 0.01)]
     zero_band: f64,
     /// Smoothness weight λ_s. Small by default: a Terfenol-like density is sharply peaked near
@@ -244,12 +247,16 @@ pub fn run(args: &Args) -> Result<()> {
     for f in &id.files {
         println!(
             "{}: {} samples, negative displacement clipped {}, above stroke {}, sign changes {}, \
+             noise {:.3} µm (fit floor u >= {:.2} µm: {} rows outside the zero band left out), \
              NRMSE M {}, NRMSE y {}",
             f.file,
             f.samples,
             f.clipped_negative,
             f.above_stroke,
             f.sign_changes,
+            f.noise_m * 1e6,
+            f.fit_floor_m * 1e6,
+            f.rows_below_floor,
             pct(f.nrmse_magnetization),
             pct(f.nrmse_displacement)
         );
