@@ -249,9 +249,11 @@ pub const FIT_FLOOR_MAX_FRACTION: f64 = 0.1;
 
 /// The smallest `u` (m) whose row enters the regression: the zero band (`zero_band_m`: below it
 /// the sign of `M` is uncertain) or, when the noise is larger, where the square root's noise bias
-/// reaches [`SQRT_NOISE_BIAS_MAX`]: `u = σ_u / √(8 · SQRT_NOISE_BIAS_MAX)` ≈ 11 σ_u.
-pub fn fit_floor_m(zero_band_m: f64, noise_u_m: f64) -> f64 {
-    zero_band_m.max(noise_u_m / (8.0 * SQRT_NOISE_BIAS_MAX).sqrt())
+/// reaches [`SQRT_NOISE_BIAS_MAX`]: `u = σ_u / √(8 · SQRT_NOISE_BIAS_MAX)` ≈ 11 σ_u, that never
+/// above [`FIT_FLOOR_MAX_FRACTION`] of the stroke `stroke_m`.
+pub fn fit_floor_m(zero_band_m: f64, noise_u_m: f64, stroke_m: f64) -> f64 {
+    let noise_floor_m = noise_u_m / (8.0 * SQRT_NOISE_BIAS_MAX).sqrt();
+    zero_band_m.max(noise_floor_m.min(FIT_FLOOR_MAX_FRACTION * stroke_m))
 }
 
 /// The sensor offset, m: in a bipolar quasi-static record the magnetization crosses zero, where
@@ -386,11 +388,7 @@ pub fn identify(
         let noise_m = displacement_noise_m(&y);
         let gain = correction.map_or(1.0, |c| c.noise_gain(m.step_s));
         noises_m.push(noise_m);
-        floors_m.push(
-            fit_floor_m(zero_band_m, gain * noise_m)
-                .min(FIT_FLOOR_MAX_FRACTION * model.stroke_m())
-                .max(zero_band_m),
-        );
+        floors_m.push(fit_floor_m(zero_band_m, gain * noise_m, model.stroke_m()));
         let displacement = match &correction {
             Some(c) => c.displacement(&y, m.step_s),
             None => y,
@@ -442,14 +440,23 @@ pub fn identify(
     // Rows whose |M| lies below the fit floor are left out of the regression: inside the zero
     // band the sign of M is uncertain, and near zero M = M_s √(u/S) turns the sensor noise into
     // tens of kA/m (dM/du grows as 1/√u) with a bias (`fit_floor_m`). The memory still sees them.
-    let selected: Vec<Vec<bool>> = conversions
+    // |M| at u (static model (6)).
+    let m_at = |u_m: f64| model.saturation_magnetization_a_per_m * (u_m / model.stroke_m()).sqrt();
+    let m_zero_band = m_at(zero_band_m);
+    let (selected, rows_below_floor): (Vec<Vec<bool>>, Vec<usize>) = conversions
         .iter()
         .zip(&floors_m)
         .map(|(c, &floor)| {
-            let m_band = model.saturation_magnetization_a_per_m * (floor / model.stroke_m()).sqrt();
-            c.m_a_per_m.iter().map(|m| m.abs() >= m_band).collect()
+            let m_floor = m_at(floor);
+            let kept: Vec<bool> = c.m_a_per_m.iter().map(|m| m.abs() >= m_floor).collect();
+            let below = c
+                .m_a_per_m
+                .iter()
+                .filter(|m| (m_zero_band..m_floor).contains(&m.abs()))
+                .count();
+            (kept, below)
         })
-        .collect();
+        .unzip();
     let experiments: Vec<Experiment<'_>> = (0..fields.len())
         .map(|k| Experiment {
             label: &labels[k],
@@ -514,16 +521,7 @@ pub fn identify(
             sign_changes: conversions[k].sign_changes,
             noise_m: noises_m[k],
             fit_floor_m: floors_m[k],
-            rows_below_floor: {
-                let band = model.saturation_magnetization_a_per_m
-                    * (zero_band_m / model.stroke_m()).sqrt();
-                conversions[k]
-                    .m_a_per_m
-                    .iter()
-                    .zip(&selected[k])
-                    .filter(|(m, &kept)| !kept && m.abs() >= band)
-                    .count()
-            },
+            rows_below_floor: rows_below_floor[k],
             nrmse_magnetization: nrmse(&m_pred, &conversions[k].m_a_per_m, None),
             nrmse_displacement: nrmse(&y_pred, &displacements[k], None),
             h_a_per_m: fields[k].clone(),
@@ -639,8 +637,8 @@ fn provenance(
             "branch_and_initial_state_per_file": choices,
             "zero_band_fraction_of_stroke": options.zero_band_fraction,
             "fit_floor": format!(
-                "rows with u below max(zero band, sigma_u / sqrt(8 * {SQRT_NOISE_BIAS_MAX})) are \
-                 left out: sigma_u (the noise of u after the lag correction) biases \
+                "rows with u below max(zero band, min(sigma_u / sqrt(8 * {SQRT_NOISE_BIAS_MAX}), \
+                 {FIT_FLOOR_MAX_FRACTION} * l_m lambda_s)) are left out: sigma_u (the noise of u after the lag correction) biases \
                  M = M_s sqrt(u/S) low by sigma_u^2 / (8 u^2) of itself"
             ),
             "regression": "M = sum_k w_k (2 f_k - 1), f_k = exact fraction of cell k in P+, \

@@ -72,10 +72,10 @@ mod actuator {
     #[test]
     fn at_the_fit_floor_the_square_root_is_biased_by_at_most_its_bound() {
         // No noise: the zero band alone.
-        assert_eq!(fit_floor_m(0.67e-6, 0.0), 0.67e-6);
+        assert_eq!(fit_floor_m(0.67e-6, 0.0, 67e-6), 0.67e-6);
         // Noise: E[√(u + n)] against √u at the floor, by Monte Carlo (n Gaussian, 10⁶ draws).
         let sigma = 0.5e-6;
-        let floor = fit_floor_m(0.67e-6, sigma);
+        let floor = fit_floor_m(0.67e-6, sigma, 67e-6);
         assert!(
             floor > 10.0 * sigma && floor < 12.0 * sigma,
             "floor {floor:e} m"
