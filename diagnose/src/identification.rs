@@ -85,8 +85,8 @@ impl DynamicIdentification {
 /// 10 kHz, fitted up to 198.5 Hz; `maglab rig --forc-hz 1 --duration-s 0.5
 /// --current-between-samples hold --skew-samples 0.13 --offset-m -0.31e-6 --noise-m 0
 /// --quantization-m 0 --freq 20.8,50.9,95.4,198.5,313.3,398.2 --amplitude-a 0.176,0.339
-/// --bias-a 0.54 --seed 3`) the model with the plant's own parameters lags the recording by
-/// 0.69°, 0.19° and 0.05° less than it should at 198.5 Hz with 1, 2 and 4 substeps, and the fit,
+/// --bias-a 0.54 --seed 3`) the model with the plant's own parameters and nuisances lags 0.69°,
+/// 0.19° and 0.05° less than the recording at 198.5 Hz with 1, 2 and 4 substeps, and the fit,
 /// given the plant's own masses, makes up for it with `R_eddy` −2.8 %, −0.24 % and −0.06 % off
 /// (README, "The fit's own integration error"). 0.005 gives 4 substeps there.
 pub const SUBSTEP_MAX_CYCLES: f64 = 0.005;

@@ -132,6 +132,9 @@ pub struct Args {
 
 /// Runs `maglab identify`.
 pub fn run(args: &Args) -> Result<()> {
+    if args.substeps == Some(0) {
+        bail!("--substeps must be >= 1, got 0");
+    }
     let (base, base_name) = match &args.params {
         Some(p) => (
             actuator_params::ActuatorParams::load(p).context("invalid base parameter file")?,
@@ -620,9 +623,6 @@ fn refine(
     substeps: Option<usize>,
 ) -> Result<()> {
     use maglab_diagnose::identification::{identify_dynamics, IdentificationOptions};
-    if substeps == Some(0) {
-        bail!("--substeps must be >= 1, got 0");
-    }
     // Recording order (file-name order): an experiment recorded without a reset continues the
     // one before it. The split sorts the dynamic experiments by frequency.
     let mut measurements: Vec<_> = split
