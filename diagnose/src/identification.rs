@@ -207,6 +207,9 @@ pub fn identify_dynamics(
              dynamic experiments"
         ));
     }
+    if options.substeps == Some(0) {
+        return Err("substeps must be at least 1, got 0".into());
+    }
     if !(options.fit_band_fraction > 0.0 && options.fit_band_fraction <= 1.0) {
         return Err(format!(
             "fit_band_fraction must be in (0, 1], got {}",
@@ -251,8 +254,7 @@ pub fn identify_dynamics(
         .fold(0.0f64, f64::max);
     let substeps = options
         .substeps
-        .unwrap_or_else(|| substeps_for(fitted_up_to_hz, 1.0 / rate_hz))
-        .max(1);
+        .unwrap_or_else(|| substeps_for(fitted_up_to_hz, 1.0 / rate_hz));
     let linear = ModelSetup {
         nominal: &nominal,
         measure: &measure,

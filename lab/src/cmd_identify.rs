@@ -116,9 +116,9 @@ pub struct Args {
     /// Electromagnetic substeps per sample of the final fit's model (Richardson-extrapolated
     /// with twice as many). Default: enough that one substep spans at most 1/200 of the period
     /// of the highest fitted frequency (4 for 200 Hz at 10 kHz): with fewer the model's own
-    /// phase error bends R_eddy (−2.8 % with 1 substep on the bench plant, README)
+    /// phase error bends R_eddy (−2.8 % with 1 substep on the bench plant, README).
     #[arg(long)]
-    substeps: Option<usize>,
+    substeps: Option<std::num::NonZeroUsize>,
     /// f0 assumed by the phase-lag scheme, Hz (default: the base file's).
     #[arg(long)]
     resonance_hz: Option<f64>,
@@ -132,9 +132,6 @@ pub struct Args {
 
 /// Runs `maglab identify`.
 pub fn run(args: &Args) -> Result<()> {
-    if args.substeps == Some(0) {
-        bail!("--substeps must be >= 1, got 0");
-    }
     let (base, base_name) = match &args.params {
         Some(p) => (
             actuator_params::ActuatorParams::load(p).context("invalid base parameter file")?,
@@ -510,7 +507,13 @@ fn identify_dynamics(
     let mut fit = fit_eddy_and_damping(&split.dynamic, params, &options, &progress)?;
     bar.finish_and_clear();
     if !args.no_waveform_fit {
-        refine(&mut fit, split, params, documented, args.substeps)?;
+        refine(
+            &mut fit,
+            split,
+            params,
+            documented,
+            args.substeps.map(|n| n.get()),
+        )?;
     }
     let pl = &fit.phase_lag;
     if let Some(file_hz) = pl.scanned_from_hz {
