@@ -110,21 +110,11 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
     let (case, dir, data) = write_case(seed, index, kind, root);
     let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
     let identified = dir.join("identified.json");
-    // A datasheet's base file, not the plant's own constants (module docs).
-    let datasheet = dir.join("datasheet.json");
-    common::write_datasheet(&datasheet);
+    // From a datasheet's base file, not the plant's own constants (module docs).
     let started = std::time::Instant::now();
-    let log = maglab(&[
-        "identify",
-        "--params",
-        &s(&datasheet),
-        &s(&data),
-        "-o",
-        &s(&identified),
-        "--plot-dir",
-        &s(&dir.join("plots")),
-    ])
-    .expect("identify runs");
+    let identify = common::identify_args(&dir, &data, &identified);
+    let log =
+        maglab(&identify.iter().map(String::as_str).collect::<Vec<_>>()).expect("identify runs");
     std::fs::write(dir.join("identify.log"), log).expect("log written");
     let id: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&identified).expect("written"))

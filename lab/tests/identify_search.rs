@@ -16,37 +16,19 @@ fn every_pass_of_the_alternation_searches_around_the_base_file() {
     let data = dir.path().join("data");
     let identified = dir.path().join("identified.json");
     let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
-    maglab(&[
-        "rig",
-        "-o",
-        &s(&data),
-        "--forc-hz",
-        "1",
-        "--duration-s",
-        "0.5",
-        "--current-between-samples",
-        "linear",
-        "--skew-samples",
-        "0.4",
-        "--offset-m",
-        "1e-6",
-        "--seed",
-        "11",
-        "--effect",
-        "amplifier_bandwidth:natural_hz=150,damping_ratio=0.55",
-    ]);
+    let rig: Vec<String> = ["rig", "-o", &s(&data)]
+        .iter()
+        .chain(&common::BENCH_FOLDER_ARGS)
+        .chain(&[
+            "--effect",
+            "amplifier_bandwidth:natural_hz=150,damping_ratio=0.55",
+        ])
+        .map(|a| a.to_string())
+        .collect();
+    maglab(&rig.iter().map(String::as_str).collect::<Vec<_>>());
+    let identify = common::identify_args(dir.path(), &data, &identified);
+    let log = maglab(&identify.iter().map(String::as_str).collect::<Vec<_>>());
     let datasheet = dir.path().join("datasheet.json");
-    common::write_datasheet(&datasheet);
-    let log = maglab(&[
-        "identify",
-        "--params",
-        &s(&datasheet),
-        &s(&data),
-        "-o",
-        &s(&identified),
-        "--plot-dir",
-        &s(&dir.path().join("plots")),
-    ]);
     println!("{log}");
     let base: actuator_params::ActuatorParams =
         serde_json::from_str(&std::fs::read_to_string(&datasheet).expect("written"))

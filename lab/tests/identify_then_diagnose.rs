@@ -52,42 +52,17 @@ fn identify_then_diagnose(rig_args: &[&str]) {
     let identified = dir.path().join("identified.json");
     let report = dir.path().join("report");
     let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
-    let rig: Vec<String> = [
-        "rig",
-        "-o",
-        &s(&data),
-        "--forc-hz",
-        "1",
-        "--duration-s",
-        "0.5",
-        "--current-between-samples",
-        "linear",
-        "--skew-samples",
-        "0.4",
-        "--offset-m",
-        "1e-6",
-        "--seed",
-        "11",
-    ]
-    .iter()
-    .chain(rig_args)
-    .map(|a| a.to_string())
-    .collect();
+    let rig: Vec<String> = ["rig", "-o", &s(&data)]
+        .iter()
+        .chain(&common::BENCH_FOLDER_ARGS)
+        .chain(rig_args)
+        .map(|a| a.to_string())
+        .collect();
     maglab(&rig.iter().map(String::as_str).collect::<Vec<_>>());
-    // The datasheet's base file (module docs).
-    let datasheet = dir.path().join("datasheet.json");
-    common::write_datasheet(&datasheet);
+    // From the datasheet's base file (module docs).
     let started = std::time::Instant::now();
-    let log = maglab(&[
-        "identify",
-        "--params",
-        &s(&datasheet),
-        &s(&data),
-        "-o",
-        &s(&identified),
-        "--plot-dir",
-        &s(&dir.path().join("plots")),
-    ]);
+    let identify = common::identify_args(dir.path(), &data, &identified);
+    let log = maglab(&identify.iter().map(String::as_str).collect::<Vec<_>>());
     println!("{log}\nidentify: {:.0} s", started.elapsed().as_secs_f64());
 
     let truth = actuator_params::paper_defaults();

@@ -1,7 +1,46 @@
-//! Shared by the `maglab` binary's tests: running it, and the base file a user starts `maglab
-//! identify` from.
+//! Shared by the `maglab` binary's tests: running it, the base file a user starts `maglab
+//! identify` from and that command's arguments, and the bench folder the identify tests record.
 
 use std::path::Path;
+
+/// `maglab rig`'s arguments (after `-o DIR`) for the bench folders the identify tests record: a
+/// 1 Hz reversal sweep in front of 0.5 s sines, the current linear between samples, a 0.4-sample
+/// channel skew, a 1 µm sensor offset, seed 11 (the rig's default noise).
+#[allow(dead_code)] // not every test crate that includes this module records one
+pub const BENCH_FOLDER_ARGS: [&str; 12] = [
+    "--forc-hz",
+    "1",
+    "--duration-s",
+    "0.5",
+    "--current-between-samples",
+    "linear",
+    "--skew-samples",
+    "0.4",
+    "--offset-m",
+    "1e-6",
+    "--seed",
+    "11",
+];
+
+/// The arguments of `maglab identify` on the folder `data` from a datasheet's base file
+/// ([`write_datasheet`], written to `dir/datasheet.json`), writing `identified` and its plots
+/// under `dir/plots` (not into the working directory).
+#[allow(dead_code)] // not every test crate that includes this module identifies
+pub fn identify_args(dir: &Path, data: &Path, identified: &Path) -> Vec<String> {
+    let datasheet = dir.join("datasheet.json");
+    write_datasheet(&datasheet);
+    let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
+    vec![
+        "identify".into(),
+        "--params".into(),
+        s(&datasheet),
+        s(data),
+        "-o".into(),
+        s(identified),
+        "--plot-dir".into(),
+        s(&dir.join("plots")),
+    ]
+}
 
 /// Writes a datasheet's base file to `path`: the paper defaults with R_eddy, ξ, f0 off by ×1.4,
 /// ×0.75, ×1.2 (a datasheet's values, not this rod's), so that the identification does not start
