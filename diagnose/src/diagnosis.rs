@@ -59,7 +59,9 @@
 //!    * candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`;
 //!      significant candidates that fit the training experiments as well as a single winner
 //!      (training RMS within [`EQUAL_ON_TRAINING`]) as `equal_on_training`: between them only the
-//!      extrapolation to the held-out experiments decides.
+//!      extrapolation to the held-out experiments decides;
+//!    * the other significant single candidates are listed as `also_significant`: the data are
+//!      consistent with them too.
 //! 8. **Second stage** (forward selection). When the winner leaves a held-out gap above max(2σ, a
 //!    tenth of the refitted nominal gap) — or when no candidate is significant alone but one
 //!    removes at least a third of the gap's energy ([`PROMISING`]: two strong effects; a
@@ -427,6 +429,10 @@ pub struct Diagnosis {
     pub none_by_model_error: bool,
     /// How far the refit could move the constants, and why (step 6).
     pub constants_range: ConstantsRange,
+    /// The other single candidates that meet the naming criterion alone, best first: the
+    /// data are consistent with them too; the verdict is the one with the lowest held-out
+    /// error ([`also_significant`]).
+    pub also_significant: Vec<AlsoSignificant>,
     /// Effects beyond the paper's model that the parameter file models because its
     /// identification found them in the data (`provenance.identified`: a reversible part
     /// `maglab identify --reversible auto` kept). They are part of the verdict: the rig
@@ -1624,6 +1630,12 @@ fn diagnose_at(
                 .unwrap_or_else(|| shifted[k].clone()),
         })
         .collect();
+    let also_significant = also_significant(
+        &ranked.iter().map(|r| &r.0).collect::<Vec<_>>(),
+        &std::iter::once(verdict.as_str())
+            .chain(additional_effects.iter().map(String::as_str))
+            .collect::<Vec<_>>(),
+    );
     // (A `none` the parameter file's own effects replaced above is not `none`.)
     let none_by_model_error = none_by_model_error && verdict == "none";
     Ok(Attempt::Done(Box::new(DiagnosisRun {
@@ -1645,6 +1657,7 @@ fn diagnose_at(
             substeps: options.substeps,
             substeps_raised: None,
             none_by_model_error,
+            also_significant,
             constants_range,
             effects_in_parameter_file,
             parameter_file_warnings: params
@@ -1989,6 +2002,46 @@ pub fn effects_identified_into(params: &actuator_params::ActuatorParams) -> Vec<
     } else {
         Vec::new()
     }
+}
+
+/// The library's effects that, below the rod's resonance, change the response's phase and
+/// amplitude with frequency much as `R_eddy`, `ξ` and `f0` do, so that constants identified
+/// from the same data absorb part of them. On the bench plant's identified suite they are
+/// what identify → diagnose took for one another (README, "Identify → diagnose").
+pub const LAG_EFFECTS: [EffectName; 4] = [
+    EffectName::AmplifierBandwidth,
+    EffectName::SensorDynamics,
+    EffectName::MechanicalLoad,
+    EffectName::EddyFrequencyDependence,
+];
+
+/// A single candidate that meets the naming criterion alone but is not the verdict's
+/// ([`Diagnosis::also_significant`]).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct AlsoSignificant {
+    /// Effect name.
+    pub effect: String,
+    /// Its held-out reduction (refitted nominal RMS / with the effect).
+    pub held_out_reduction: f64,
+}
+
+/// The significant single candidates of `ranking` (best first) whose effect is not among
+/// `named` (the verdict's effects); none when the verdict is `none`: a gap within the noise
+/// needs no effect, though a candidate may pass the criterion's within-the-noise branch there by
+/// removing a sliver of it (the bench folder of `lab/tests/identify_then_diagnose.rs`, chained:
+/// thermal drift at 1.02x).
+pub fn also_significant(ranking: &[&CandidateResult], named: &[&str]) -> Vec<AlsoSignificant> {
+    if named.contains(&"none") {
+        return Vec::new();
+    }
+    ranking
+        .iter()
+        .filter(|c| c.significant && !named.contains(&c.effect.as_str()))
+        .map(|c| AlsoSignificant {
+            effect: c.effect.clone(),
+            held_out_reduction: c.held_out_reduction,
+        })
+        .collect()
 }
 
 /// The significant candidates other than `winner` whose training RMS is within

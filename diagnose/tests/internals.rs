@@ -518,6 +518,33 @@ mod diagnosis {
         );
         assert!(equal_on_training(&winner, std::iter::once(&winner)).is_empty());
     }
+
+    #[test]
+    fn also_significant_lists_the_other_significant_candidates_best_first() {
+        // Seed 1 case 5 identified: the load named, a sensor and an amplifier lag significant
+        // too (the plant's was the sensor); an insignificant eddy fit is no alternative.
+        let mut ranking = [
+            candidate("mechanical_load", 1.0e-7, true),
+            candidate("sensor_dynamics", 1.0e-7, true),
+            candidate("amplifier_bandwidth", 1.0e-7, true),
+            candidate("eddy_frequency_dependence", 1.0e-7, false),
+        ];
+        for (c, r) in ranking.iter_mut().zip([5.5, 4.02, 4.01, 1.33]) {
+            c.held_out_reduction = r;
+        }
+        let ranking: Vec<&CandidateResult> = ranking.iter().collect();
+        let names = |a: &[AlsoSignificant]| a.iter().map(|a| a.effect.clone()).collect::<Vec<_>>();
+        let single = also_significant(&ranking, &["mechanical_load"]);
+        assert_eq!(names(&single), ["sensor_dynamics", "amplifier_bandwidth"]);
+        assert_eq!(single[0].held_out_reduction, 4.02);
+        // Both effects of a named pair are the verdict's.
+        let pair = also_significant(&ranking, &["mechanical_load", "sensor_dynamics"]);
+        assert_eq!(names(&pair), ["amplifier_bandwidth"]);
+        // `unexplained`: nothing significant, nothing listed.
+        assert!(also_significant(&ranking[3..], &["unexplained"]).is_empty());
+        // `none`: a gap within the noise needs no effect, whatever passed the criterion there.
+        assert!(also_significant(&ranking, &["none"]).is_empty());
+    }
 }
 mod fit {
     use maglab_diagnose::candidates::{self, Candidate};

@@ -86,6 +86,9 @@ pub fn run(args: &Args) -> Result<()> {
             d.equal_on_training.join(", ")
         );
     }
+    if let Some(note) = also_significant_note(d) {
+        println!("  {note}");
+    }
     for w in &d.parameter_file_warnings {
         println!("WARNING (from the parameter file's identification): {w}");
     }
@@ -104,6 +107,43 @@ pub fn run(args: &Args) -> Result<()> {
         started.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// The sentence on the other candidates that meet the naming criterion alone
+/// (`Diagnosis::also_significant`), or `None` when there are none. When R_eddy, ξ, f0 were
+/// identified from the same data and a lag is among the effects, it says that those constants
+/// absorb part of a lag.
+fn also_significant_note(d: &maglab_diagnose::diagnosis::Diagnosis) -> Option<String> {
+    if d.also_significant.is_empty() {
+        return None;
+    }
+    let list: Vec<String> = d
+        .also_significant
+        .iter()
+        .map(|a| format!("{} ({:.1}x)", a.effect, a.held_out_reduction))
+        .collect();
+    let lags = maglab_diagnose::diagnosis::LAG_EFFECTS.map(|e| e.name());
+    let lag_involved = std::iter::once(&d.verdict)
+        .chain(d.also_significant.iter().map(|a| &a.effect))
+        .any(|e| lags.contains(&e.as_str()));
+    let absorbed = if lag_involved && !d.constants_range.identified_from_data.is_empty() {
+        format!(
+            " R_eddy, xi, f0 were identified from these data ({}), and below about twice the \
+             rod's resonance a lag of the amplifier, the sensor or a load, or eddy currents that \
+             vary with frequency, shift the response as lower R_eddy, xi, f0 do: the identified \
+             constants absorb part of any of them, and these are the effects that identify -> \
+             diagnose took for one another on the bench plant (README, \"Identify -> diagnose\").",
+            d.constants_range.identified_from_data.join(", ")
+        )
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "**Also consistent with the data:** {} meet{} the naming criterion alone (held-out \
+         reduction); the verdict goes to the lowest held-out error.{absorbed}",
+        list.join(", "),
+        if list.len() == 1 { "s" } else { "" }
+    ))
 }
 
 fn um(v: f64) -> String {
@@ -130,6 +170,9 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
         named.join(" + "),
         d.verdict_reason
     );
+    if let Some(note) = also_significant_note(d) {
+        let _ = writeln!(s, "{note}\n");
+    }
     if !d.parameter_file_warnings.is_empty() {
         let _ = writeln!(
             s,

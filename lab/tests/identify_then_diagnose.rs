@@ -137,6 +137,8 @@ fn identify_then_diagnose(rig_args: &[&str]) {
         "{}",
         d["constants_range"]
     );
+    // No candidate explains anything, so none is an alternative either.
+    assert_eq!(d["also_significant"], serde_json::json!([]));
     // "Where" reports one band per frequency of the dynamic experiments, in ascending order,
     // and none for the quasi-static reversal sweep.
     let mut sine_hz: Vec<f64> = d["experiments"]
