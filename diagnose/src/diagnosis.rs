@@ -60,8 +60,8 @@
 //!      significant candidates that fit the training experiments as well as a single winner
 //!      (training RMS within [`EQUAL_ON_TRAINING`]) as `equal_on_training`: between them only the
 //!      extrapolation to the held-out experiments decides;
-//!    * the other significant single candidates are listed as `also_significant`: the data are
-//!      consistent with them too.
+//!    * the other significant single candidates are listed as `also_significant` (none after
+//!      `none`): the data are consistent with them too.
 //! 8. **Second stage** (forward selection). When the winner leaves a held-out gap above max(2σ, a
 //!    tenth of the refitted nominal gap) — or when no candidate is significant alone but one
 //!    removes at least a third of the gap's energy ([`PROMISING`]: two strong effects; a

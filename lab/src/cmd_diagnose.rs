@@ -87,7 +87,7 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     if let Some(note) = also_significant_note(d) {
-        println!("  {note}");
+        println!("  {}", note.replace("**", ""));
     }
     for w in &d.parameter_file_warnings {
         println!("WARNING (from the parameter file's identification): {w}");
