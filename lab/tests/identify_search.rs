@@ -8,24 +8,19 @@
 mod common;
 use common::maglab;
 use maglab_diagnose::identification::IDENTIFICATION_RANGE;
-use std::path::Path;
 
 #[test]
 fn every_pass_of_the_alternation_searches_around_the_base_file() {
     let dir = tempfile::tempdir().expect("temp dir");
     let data = dir.path().join("data");
     let identified = dir.path().join("identified.json");
-    let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
-    let rig: Vec<String> = ["rig", "-o", &s(&data)]
-        .iter()
-        .chain(&common::BENCH_FOLDER_ARGS)
-        .chain(&[
+    common::record_bench_folder(
+        &data,
+        &[
             "--effect",
             "amplifier_bandwidth:natural_hz=150,damping_ratio=0.55",
-        ])
-        .map(|a| a.to_string())
-        .collect();
-    maglab(&rig.iter().map(String::as_str).collect::<Vec<_>>());
+        ],
+    );
     let identify = common::identify_args(dir.path(), &data, &identified);
     let log = maglab(&identify.iter().map(String::as_str).collect::<Vec<_>>());
     let datasheet = dir.path().join("datasheet.json");

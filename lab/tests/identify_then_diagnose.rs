@@ -52,13 +52,7 @@ fn identify_then_diagnose(rig_args: &[&str]) {
     let identified = dir.path().join("identified.json");
     let report = dir.path().join("report");
     let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
-    let rig: Vec<String> = ["rig", "-o", &s(&data)]
-        .iter()
-        .chain(&common::BENCH_FOLDER_ARGS)
-        .chain(rig_args)
-        .map(|a| a.to_string())
-        .collect();
-    maglab(&rig.iter().map(String::as_str).collect::<Vec<_>>());
+    common::record_bench_folder(&data, rig_args);
     // From the datasheet's base file (module docs).
     let started = std::time::Instant::now();
     let identify = common::identify_args(dir.path(), &data, &identified);

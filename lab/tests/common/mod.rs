@@ -6,8 +6,8 @@ use std::path::Path;
 /// `maglab rig`'s arguments (after `-o DIR`) for the bench folders the identify tests record: a
 /// 1 Hz reversal sweep in front of 0.5 s sines, the current linear between samples, a 0.4-sample
 /// channel skew, a 1 µm sensor offset, seed 11 (the rig's default noise).
-#[allow(dead_code)] // not every test crate that includes this module records one
-pub const BENCH_FOLDER_ARGS: [&str; 12] = [
+#[allow(dead_code)] // used by record_bench_folder only
+const BENCH_FOLDER_ARGS: [&str; 12] = [
     "--forc-hz",
     "1",
     "--duration-s",
@@ -21,6 +21,19 @@ pub const BENCH_FOLDER_ARGS: [&str; 12] = [
     "--seed",
     "11",
 ];
+
+/// Records the bench folder ([`BENCH_FOLDER_ARGS`]) into `data` with `maglab rig`, `extra`
+/// arguments added (an effect, another start).
+#[allow(dead_code)] // not every test crate that includes this module records one
+pub fn record_bench_folder(data: &Path, extra: &[&str]) {
+    let data = data.to_str().expect("UTF-8 path");
+    let args: Vec<&str> = ["rig", "-o", data]
+        .into_iter()
+        .chain(BENCH_FOLDER_ARGS)
+        .chain(extra.iter().copied())
+        .collect();
+    maglab(&args);
+}
 
 /// The arguments of `maglab identify` on the folder `data` from a datasheet's base file
 /// ([`write_datasheet`], written to `dir/datasheet.json`), writing `identified` and its plots
