@@ -5,7 +5,7 @@
 //! ([`Conditioning`]: negative saturation, then slowly to the experiment's first current — the
 //! start state `negative-saturation` of `dataset.json`):
 //! 0. the quasi-static **FORC sweep** (first-order reversal curves with a reversal on every grid
-//!    line, the path of `maglab_identify::excite::forc_waypoints`): from `overdrive` below the
+//!    line, the path of `maglab_dataset::excitation::forc_waypoints`): from `overdrive` below the
 //!    grid to `overdrive` above it, then for `r = L−1 … 0` down to grid line `r` (the bottom for
 //!    `r = 0`) and back up; straight segments at the speed of a full-range triangle at
 //!    [`FORC_SWEEP_HZ`], each a whole number of ticks so that every reversal is a sample;

@@ -15,7 +15,7 @@
 //! }
 //! ```
 //!
-//! `start_state` (per file, or the folder-wide default) is one of [`StartState::NAMES`]:
+//! `start_state` (per file, or the folder-wide default) is one of [`StartState::BENCH`]:
 //! `switch-on-demagnetized` (AC-demagnetized at 0 A and at rest, the command switched on at
 //! `t = 0`), `demagnetized` (AC-demagnetized at 0 A, then brought slowly to the first command and
 //! at rest there), `negative-saturation` / `positive-saturation` (saturated, then brought slowly
@@ -26,7 +26,8 @@
 //! Tools that need a start state and find none documented estimate it from the data and say so
 //! (`maglab diagnose`, `maglab identify`).
 
-use crate::data::DataError;
+use crate::error::DataError;
+pub use crate::start::StartState;
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -35,54 +36,6 @@ use std::path::Path;
 pub const FILE_NAME: &str = "dataset.json";
 /// The value of `format`.
 pub const FORMAT: &str = "maglab-dataset-1";
-
-/// How an experiment was started (see the module docs).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum StartState {
-    /// AC-demagnetized at 0 A, at rest; the command switched on at `t = 0`.
-    SwitchOnDemagnetized,
-    /// AC-demagnetized at 0 A, brought slowly to the first command, at rest there.
-    Demagnetized,
-    /// Negative saturation, then slowly to the first command.
-    NegativeSaturation,
-    /// Positive saturation, then slowly to the first command.
-    PositiveSaturation,
-    /// The state the previous experiment (file-name order) left.
-    Previous,
-}
-
-impl StartState {
-    /// Interface names.
-    pub const NAMES: [(&'static str, StartState); 5] = [
-        ("switch-on-demagnetized", StartState::SwitchOnDemagnetized),
-        ("demagnetized", StartState::Demagnetized),
-        ("negative-saturation", StartState::NegativeSaturation),
-        ("positive-saturation", StartState::PositiveSaturation),
-        ("previous", StartState::Previous),
-    ];
-
-    /// Parses an interface name.
-    pub fn parse(text: &str) -> Result<Self, String> {
-        Self::NAMES
-            .iter()
-            .find(|(n, _)| *n == text)
-            .map(|(_, s)| *s)
-            .ok_or_else(|| {
-                format!(
-                    "unknown start state `{text}`: expected one of {}",
-                    Self::NAMES.map(|(n, _)| n).join(", ")
-                )
-            })
-    }
-
-    /// The interface name.
-    pub fn name(self) -> &'static str {
-        Self::NAMES
-            .iter()
-            .find(|(_, s)| *s == self)
-            .map_or("?", |(n, _)| n)
-    }
-}
 
 /// What one file's entry documents.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -226,7 +179,7 @@ fn parse_state(
     let text = v
         .as_str()
         .ok_or_else(|| field(name, format!("must be a string, got {v}")))?;
-    StartState::parse(text).map_err(|e| field(name, e))
+    StartState::parse_among(text, &StartState::BENCH).map_err(|e| field(name, e))
 }
 
 fn parse_file(

@@ -12,9 +12,10 @@
 //! gap starts at the lowest band from which every higher band disagrees. Every band is judged on
 //! its own data, whatever the parameters were identified on.
 
-use crate::diagnosis::{systematic, ExperimentInfo};
-use crate::signal;
-use maglab_identify::data::Measurement;
+use maglab_dataset::data::Measurement;
+use maglab_model::experiments::ExperimentInfo;
+use maglab_model::residual::systematic;
+use maglab_signal::{branches, spectrum};
 use serde::Serialize;
 
 /// Harmonic content of one order.
@@ -162,7 +163,7 @@ pub fn analyse(
         let n = m.len();
         let s = info.settle_samples;
         let meas = &m.displacement_m;
-        let labels = signal::branch_labels(&m.current_a);
+        let labels = branches::branch_labels(&m.current_a);
         let mut acc = [Acc::default(); 6];
         let mut all = Acc::default();
         let third = (n - s) / 3;
@@ -180,9 +181,9 @@ pub fn analyse(
         for (t, a) in totals.iter_mut().zip(acc) {
             t.merge(a);
         }
-        let window = signal::whole_periods(s, n, info.fundamental_hz, rate_hz);
+        let window = spectrum::whole_periods(s, n, info.fundamental_hz, rate_hz);
         let at_order = |x: &[f64], order: usize| {
-            signal::fourier_coefficient(
+            spectrum::fourier_coefficient(
                 x,
                 window.clone(),
                 order as f64 * info.fundamental_hz,

@@ -64,7 +64,7 @@ fn scratch(name: &str, data: &[u8]) -> PathBuf {
 /// Any bytes as one measurement file (`t_s,current_a,displacement_m`).
 pub fn measurement_csv(data: &[u8]) {
     let path = scratch("measurement.csv", data);
-    if let Ok(m) = maglab_identify::data::load_measurement(&path) {
+    if let Ok(m) = maglab_dataset::data::load_measurement(&path) {
         assert_eq!(m.t_s.len(), m.current_a.len());
         assert!(m.step_s.is_finite() && m.step_s > 0.0, "step {}", m.step_s);
     }
@@ -80,7 +80,10 @@ pub fn preisach_fit_input(data: &[u8]) {
     let mut next = || fields.next().unwrap_or("").to_string();
     let (input, output, group, filter_text, initial, unexcited, lines) =
         (next(), next(), next(), next(), next(), next(), next());
-    let _ = maglab_identify::memory::InitialState::parse(&initial);
+    let _ = maglab_dataset::StartState::parse_among(
+        &initial,
+        &maglab_identify::memory::PREISACH_STARTS,
+    );
     let _ = maglab_identify::fit::Unexcited::parse(&unexcited);
     let _ = maglab_identify::lines::LineChoice::parse(&lines);
     let filter = if filter_text.is_empty() {
@@ -113,7 +116,7 @@ pub fn preisach_fit_input(data: &[u8]) {
                     input: &s.input,
                     output: &s.output,
                     selected: &s.selected,
-                    initial: maglab_identify::memory::InitialState::Periodic,
+                    initial: maglab_dataset::StartState::Periodic,
                     weights: None,
                 })
                 .collect();

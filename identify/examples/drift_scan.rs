@@ -8,7 +8,7 @@
 //! cargo run --release -p maglab-identify --example drift_scan -- DIR/case*/data/00_forc.csv
 //! ```
 
-use maglab_identify::data::load_measurement;
+use maglab_dataset::data::load_measurement;
 use maglab_identify::drift::{drift_warning, extreme_visits, DRIFT_LIMIT};
 use std::path::Path;
 

@@ -1,5 +1,5 @@
 //! Writes the synthetic identification dataset of `tests/dynamics.rs` to a folder, for
-//! `maglab identify` (README, "Identification"):
+//! `maglab identify` (README, "MassIdentification"):
 //!
 //! ```sh
 //! cargo run --release -p maglab-identify --example synthetic_dataset -- out/synthetic-dataset
@@ -14,8 +14,8 @@
 
 use host_tests::reference::dynamics::{PlantConstants, ReferencePlant, RelayHysteresis};
 use host_tests::reference::preisach::RelayPreisach;
-use maglab_identify::data::write_measurement;
-use maglab_identify::excite::{forc_excitation, ExciteOptions};
+use maglab_dataset::data::write_measurement;
+use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;

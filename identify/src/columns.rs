@@ -8,10 +8,10 @@
 //! always runs over every row of an experiment, in file order, so the memory state at a selected
 //! row is the one the full history produced.
 //!
-//! Errors name the file, the line and the column, like [`crate::data`]; every row must parse
+//! Errors name the file, the line and the column, like `maglab_dataset::data`; every row must parse
 //! (finite numbers in the used columns), nothing is skipped.
 
-use crate::data::{parse_finite, read_records, DataError};
+use maglab_dataset::data::{parse_finite, read_records, DataError};
 use std::path::{Path, PathBuf};
 
 /// Which rows count (for the fit or for the score).

@@ -14,8 +14,9 @@
 
 use crate::cells::fractions;
 use crate::fit::Reversible;
-use crate::memory::{InitialState, Memory, Piece};
+use crate::memory::{Memory, Piece};
 use crate::{CELL_COUNT, LEVELS};
+use maglab_dataset::StartState;
 
 /// The Preisach grid: `LEVELS` intervals of `[h_min, h_max]` (input units), equal or between
 /// given lines. Inside interval `k` the normalized input runs affinely from `k` to `k + 1`, so a
@@ -140,7 +141,7 @@ pub struct Experiment<'a> {
     /// Rows that enter the fit (same length as `input`).
     pub selected: &'a [bool],
     /// Initial memory.
-    pub initial: InitialState,
+    pub initial: StartState,
     /// Weight of each row (inverse variance of the output, normalized by the caller), `None`:
     /// all 1.
     pub weights: Option<&'a [f64]>,
@@ -153,26 +154,29 @@ pub struct Experiment<'a> {
 pub fn run_experiment(
     grid: &Grid,
     input: &[f64],
-    initial: InitialState,
+    initial: StartState,
     mut row: impl FnMut(usize, f64, &[f64; CELL_COUNT]),
 ) -> usize {
-    // Demagnetized: around the first input. Periodic: around the middle of the experiment's
+    // Demagnetized: around zero input, or around the first input. Periodic: around the middle of the experiment's
     // excursion (a centred periodic loop was reached by cycling down from larger amplitudes about
     // its centre; the preconditioning period then wipes out everything inside the excursion).
-    let centre_x = if initial == InitialState::Periodic {
+    let centre_x = if initial == StartState::Periodic {
         let (lo, hi) = input
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
                 (a.min(u), b.max(u))
             });
         grid.normalize(0.5 * (lo + hi))
-    } else if initial == InitialState::DemagnetizedAtZero {
+    } else if matches!(
+        initial,
+        StartState::Demagnetized | StartState::SwitchOnDemagnetized
+    ) {
         grid.normalize(0.0)
     } else {
         input.first().map_or(0.0, |&u| grid.normalize(u))
     };
     let mut memory = Memory::initial(LEVELS, initial, centre_x);
-    if initial == InitialState::Periodic {
+    if initial == StartState::Periodic {
         for &u in input {
             memory.move_to(grid.normalize(u));
         }

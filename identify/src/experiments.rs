@@ -1,14 +1,14 @@
 //! The dataset convention: which files of a dataset are quasi-static (Preisach masses, model (6))
 //! and which are dynamic (sinusoidal currents for R_eddy, ξ, f0, models (4)-(5)).
 //!
-//! A dataset is a folder of measurement files ([`crate::data`]). Each file is classified by one of
+//! A dataset is a folder of measurement files (`maglab_dataset::data`). Each file is classified by one of
 //! two rules, and the classification of every file (with the reason) is reported:
 //!
 //! 1. **Sub-folders (explicit).** Files in `DATASET/quasi-static/` are quasi-static, files in
 //!    `DATASET/dynamic/` are dynamic, whatever their content. A file in `dynamic/` must still be a
 //!    sinusoid (its frequency is measured from it): otherwise it is an error naming the file.
 //! 2. **Spectrum (files directly in `DATASET/`).** The current's excitation frequency is the
-//!    largest peak of its Hann-windowed spectrum ([`crate::spectrum::dominant_tone`]). A file is
+//!    largest peak of its Hann-windowed spectrum ([`maglab_signal::spectrum::dominant_tone`]). A file is
 //!    dynamic when the current is a sinusoid — at least [`ClassifyOptions::tonal_min_fraction`]
 //!    (default 0.9) of its AC power within ±3 bins of the peak — at a frequency of at least
 //!    [`ClassifyOptions::dynamic_min_hz`] (default 10 Hz); every other file (reversal sequences
@@ -25,8 +25,8 @@
 //! (`maglab rig`, a lab logger) work as they are; rule 1 overrides it when the producer knows
 //! better (e.g. a 20 Hz sine meant as quasi-static data for a slow material).
 
-use crate::data::{load_measurement, DataError, Measurement};
-use crate::spectrum::{dominant_tone, refine_frequency, Tone};
+use maglab_dataset::data::{load_measurement, DataError, Measurement};
+use maglab_signal::spectrum::{dominant_tone, refine_frequency, Tone};
 use std::path::{Path, PathBuf};
 
 /// Sub-folder of quasi-static files (rule 1).
@@ -103,9 +103,9 @@ pub struct SplitDataset {
 }
 
 impl SplitDataset {
-    /// The quasi-static part as a [`crate::data::Dataset`] (what the Preisach fit reads).
-    pub fn quasi_static_dataset(&self) -> crate::data::Dataset {
-        crate::data::Dataset {
+    /// The quasi-static part as a [`maglab_dataset::data::Dataset`] (what the Preisach fit reads).
+    pub fn quasi_static_dataset(&self) -> maglab_dataset::data::Dataset {
+        maglab_dataset::data::Dataset {
             dir: self.dir.clone(),
             measurements: self.quasi_static.clone(),
             ignored: self.ignored.clone(),
@@ -130,7 +130,7 @@ fn list(dir: &Path) -> Result<Listing, DataError> {
             files.push(path);
         } else if path
             .file_name()
-            .is_some_and(|n| n == crate::dataset_info::FILE_NAME)
+            .is_some_and(|n| n == maglab_dataset::dataset_info::FILE_NAME)
         {
             // The dataset's documentation, read by `dataset_info`.
         } else if path.is_dir() {

@@ -33,25 +33,20 @@
 //! cell `(i, j)` (β in interval `i`, α in interval `j`, `i <= j`), alpha-major index
 //! `j (j + 1) / 2 + i`, diagonal cells are half-squares, weights are cell masses.
 
-pub mod actuator;
 pub mod cells;
 pub mod columns;
-/// The dataset folder format (`maglab-dataset`), re-exported: `maglab_identify::data` and
-/// `maglab_identify::dataset_info` are its modules.
-pub use maglab_dataset::{data, dataset_info};
 pub mod design;
 pub mod drift;
 pub mod dynamics;
-pub mod excite;
 pub mod experiments;
 pub mod fit;
-pub mod golden;
 pub mod lines;
 pub mod magnetization;
+pub mod masses;
 pub mod memory;
 pub mod model;
+pub mod pipeline;
 pub mod quality;
-pub mod spectrum;
 
 /// Number of input levels of the grid (the core's `LEVELS`).
 pub const LEVELS: usize = actuator_params::PREISACH_LEVELS;
@@ -71,3 +66,5 @@ pub fn cell_of_index(index: usize) -> (usize, usize) {
     }
     (index - j * (j + 1) / 2, j)
 }
+
+pub use pipeline::{identify, Base, Identified, IdentifyError, IdentifyOptions, RecordedDataset};

@@ -16,58 +16,18 @@
 //! `β` above the last minimum, each fall switches off `β >= x`; the wiping-out property pops the
 //! pairs the input passes (paper Section 2; Mayergoyz). There is no capacity limit here.
 
-/// The initial memory of an experiment.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum InitialState {
-    /// Every hysteron at -1 (input at the bottom of the grid).
-    NegativeSaturation,
-    /// Every hysteron at +1 (input at the top of the grid).
-    PositiveSaturation,
-    /// AC-demagnetized around the experiment's first input value: `P₊ = {α + β < 2 u₀}`
-    /// (approximated by a fine staircase, see [`Memory::demagnetized`]).
-    Demagnetized,
-    /// AC-demagnetized around the zero input (no current), then the input moves to the
-    /// experiment's first value: what a bench's demagnetization before an experiment leaves.
-    DemagnetizedAtZero,
-    /// The experiment is one period of a periodic steady state: start demagnetized around the
-    /// middle of the experiment's input excursion, run the whole input sequence once, then
-    /// record.
-    Periodic,
-}
+use maglab_dataset::StartState;
 
-impl InitialState {
-    /// All variants with their CLI names.
-    pub const NAMES: [(&'static str, InitialState); 5] = [
-        ("negative-saturation", InitialState::NegativeSaturation),
-        ("positive-saturation", InitialState::PositiveSaturation),
-        ("demagnetized", InitialState::Demagnetized),
-        ("demagnetized-at-zero", InitialState::DemagnetizedAtZero),
-        ("periodic", InitialState::Periodic),
-    ];
-
-    /// Parses a CLI name.
-    pub fn parse(text: &str) -> Result<Self, String> {
-        Self::NAMES
-            .iter()
-            .find(|(n, _)| *n == text)
-            .map(|(_, s)| *s)
-            .ok_or_else(|| {
-                format!(
-                    "unknown initial state `{text}`; expected one of {}",
-                    Self::NAMES.map(|(n, _)| n).join(", ")
-                )
-            })
-    }
-
-    /// The CLI name.
-    pub fn name(self) -> &'static str {
-        Self::NAMES
-            .iter()
-            .find(|(_, s)| *s == self)
-            .map_or("?", |(n, _)| n)
-    }
-}
+/// The start states a normalized Preisach memory reproduces on its own (no mechanics, no
+/// previous experiment): saturated, AC-demagnetized at zero input or around the first input,
+/// or one period of a periodic steady state.
+pub const PREISACH_STARTS: [StartState; 5] = [
+    StartState::NegativeSaturation,
+    StartState::PositiveSaturation,
+    StartState::DemagnetizedAtFirstInput,
+    StartState::Demagnetized,
+    StartState::Periodic,
+];
 
 /// Step of the staircase that approximates the demagnetized line `α + β = 2c`, in cells.
 ///
@@ -138,17 +98,15 @@ impl Memory {
         memory
     }
 
-    /// The memory an [`InitialState`] starts from; `centre_x` (normalized) is the demagnetization
-    /// centre (the first input for `Demagnetized`, the zero input for `DemagnetizedAtZero`, the
-    /// middle of the excursion for `Periodic`, which then also needs the caller to run the
-    /// preconditioning period).
-    pub fn initial(levels: usize, state: InitialState, centre_x: f64) -> Self {
+    /// The memory a start state leaves; `centre_x` (normalized) is the demagnetization centre
+    /// (the first input for `demagnetized-at-first-input`, the zero input for `demagnetized`, the
+    /// middle of the excursion for `periodic`, which then also needs the caller to run the
+    /// preconditioning period). Every state but the saturations is a demagnetization there.
+    pub fn initial(levels: usize, state: StartState, centre_x: f64) -> Self {
         match state {
-            InitialState::NegativeSaturation => Self::negative_saturation(levels),
-            InitialState::PositiveSaturation => Self::positive_saturation(levels),
-            InitialState::Demagnetized
-            | InitialState::DemagnetizedAtZero
-            | InitialState::Periodic => Self::demagnetized(levels, centre_x),
+            StartState::NegativeSaturation => Self::negative_saturation(levels),
+            StartState::PositiveSaturation => Self::positive_saturation(levels),
+            _ => Self::demagnetized(levels, centre_x),
         }
     }
 

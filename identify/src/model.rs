@@ -8,13 +8,19 @@
 //! steeper where the grid is finer — where the loops are steep).
 
 use crate::design::{run_experiment, Grid};
-use crate::memory::InitialState;
 use crate::CELL_COUNT;
+use maglab_dataset::StartState;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Identifies the file format.
-pub const FORMAT: &str = "maglab-preisach-model";
+/// Identifies the file format (version 2: start states in the workspace's one vocabulary,
+/// `maglab_dataset::start`).
+pub const FORMAT: &str = "maglab-preisach-model-2";
+
+/// The first version of the format. Its `initial_state` names differ from version 2's:
+/// `demagnetized` meant around the first input (`demagnetized-at-first-input` now) and
+/// `demagnetized-at-zero` what `demagnetized` means now. Read, never written.
+pub const FORMAT_1: &str = "maglab-preisach-model";
 
 /// A generic Preisach model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -46,7 +52,7 @@ pub struct PreisachModel {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reversible_slopes: Option<Vec<f64>>,
     /// Initial memory assumed for each experiment.
-    pub initial_state: InitialState,
+    pub initial_state: StartState,
     /// How it was fitted (data, options, residuals, unexcited cells).
     pub provenance: serde_json::Value,
 }
@@ -62,7 +68,7 @@ impl PreisachModel {
     }
 
     /// Predicts the output for an input sequence from `initial`.
-    pub fn predict(&self, input: &[f64], initial: InitialState) -> Vec<f64> {
+    pub fn predict(&self, input: &[f64], initial: StartState) -> Vec<f64> {
         let grid = self.grid();
         let rises = self
             .reversible_slopes
@@ -84,7 +90,7 @@ impl PreisachModel {
 
     /// A model of a field → magnetization operator with given masses and no affine part (used to
     /// simulate a parameter file's static model).
-    pub fn from_weights(grid: Grid, weights: &[f64], initial_state: InitialState) -> Self {
+    pub fn from_weights(grid: Grid, weights: &[f64], initial_state: StartState) -> Self {
         PreisachModel {
             format: FORMAT.into(),
             input_column: "h_a_per_m".into(),
@@ -195,9 +201,27 @@ impl PreisachModel {
         let name = path.display().to_string();
         let text =
             std::fs::read_to_string(path).map_err(|e| format!("{name}: cannot read: {e}"))?;
-        let model: Self = serde_json::from_str(&text).map_err(|e| format!("{name}: {e}"))?;
+        let mut value: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| format!("{name}: {e}"))?;
+        if value.get("format").and_then(|f| f.as_str()) == Some(FORMAT_1) {
+            upgrade_format_1(&mut value);
+        }
+        let model: Self = serde_json::from_value(value).map_err(|e| format!("{name}: {e}"))?;
         model.validate(&name)?;
         Ok(model)
+    }
+}
+
+/// A [`FORMAT_1`] document as [`FORMAT`]: the format field and the `initial_state` names.
+fn upgrade_format_1(value: &mut serde_json::Value) {
+    value["format"] = FORMAT.into();
+    let renamed = match value.get("initial_state").and_then(|s| s.as_str()) {
+        Some("demagnetized") => Some(StartState::DemagnetizedAtFirstInput),
+        Some("demagnetized-at-zero") => Some(StartState::Demagnetized),
+        _ => None,
+    };
+    if let Some(state) = renamed {
+        value["initial_state"] = state.name().into();
     }
 }
 
@@ -261,7 +285,7 @@ pub fn fit_table(
     spec: &crate::columns::ColumnSpec,
     range: Option<(f64, f64)>,
     margin: f64,
-    initial: InitialState,
+    initial: StartState,
     lines: crate::lines::LineChoice,
     auto_smoothness: bool,
     options: &crate::fit::FitOptions,
@@ -433,7 +457,7 @@ pub fn validate_choices(
                     Err(_) => continue,
                 };
                 let mut model =
-                    PreisachModel::from_weights(grid, &result.weights, InitialState::Periodic);
+                    PreisachModel::from_weights(grid, &result.weights, StartState::Periodic);
                 model.offset = result.offset;
                 model.slope = result.slope;
                 model.reversible_slopes = options

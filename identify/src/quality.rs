@@ -20,7 +20,7 @@
 //! file may still be the best available); it says the model does not describe the data, so the
 //! file should not be trusted before `maglab diagnose` has said why.
 
-use crate::actuator::FileReport;
+use crate::masses::FileReport;
 
 /// A quasi-static record's displacement NRMSE above this is warned about (the model's own
 /// records stay below 1 %).
@@ -142,7 +142,7 @@ pub fn at_search_bound(value: f64, centre: f64, factor: f64) -> Option<bool> {
 /// value is far from this rod's, or the constant has absorbed an effect the model lacks (a lag —
 /// the sensor's, the amplifier's, a load's — reads as a lower resonance and slower eddy
 /// currents). Measured on the bench plant's identified suite (seeds 1–4, 128 folders identified
-/// from a datasheet's base: `cargo run --release -p maglab-diagnose --example bound_scan --
+/// from a datasheet's base: `cargo run --release -p maglab-identify --example bound_scan --
 /// FOLDERS`): no constant at a bound in the 16 cases without an effect, in 2 of the 32 with an
 /// out-of-library effect, 20 of the 67 with library effects (lags; of them 14 diagnosed wrong
 /// afterwards) and 7 of the 13 with thermal drift.

@@ -6,10 +6,10 @@
 //! The prediction is compared with the true centre line `tanh(u / a)` (the best a
 //! hysteresis-free model can do) and with the single-slope reversible part.
 
+use maglab_dataset::StartState;
 use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter};
 use maglab_identify::fit::{FitOptions, Reversible, Unexcited};
 use maglab_identify::lines::LineChoice;
-use maglab_identify::memory::InitialState;
 use maglab_identify::model::{fit_table, nrmse, predict_table, DEFAULT_RANGE_MARGIN};
 use std::fmt::Write;
 
@@ -69,7 +69,7 @@ fn an_almost_anhysteretic_loop_is_carried_by_the_reversible_part() {
             &spec,
             None,
             DEFAULT_RANGE_MARGIN,
-            InitialState::Periodic,
+            StartState::Periodic,
             LineChoice::Auto,
             true,
             &options,

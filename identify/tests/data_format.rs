@@ -1,6 +1,6 @@
 //! Every way a measurement file can be wrong gets an error naming file, line and column.
 
-use maglab_identify::data::{load_dataset, load_measurement, DataError};
+use maglab_dataset::data::{load_dataset, load_measurement, DataError};
 use std::path::PathBuf;
 
 fn write(name: &str, text: &str) -> PathBuf {

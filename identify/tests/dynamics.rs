@@ -31,16 +31,14 @@
 use actuator_params::ActuatorParams;
 use host_tests::reference::dynamics::{PlantConstants, ReferencePlant, RelayHysteresis};
 use host_tests::reference::preisach::RelayPreisach;
-use maglab_identify::actuator::{identify, IdentifyOptions};
-use maglab_identify::data::write_measurement;
-use maglab_identify::dynamics::{
-    fit_eddy_and_damping, CurrentBetweenSamples, DynamicOptions, Start,
-};
-use maglab_identify::excite::{forc_excitation, ExciteOptions};
+use maglab_dataset::data::write_measurement;
+use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
+use maglab_dataset::{CurrentBetweenSamples, StartState};
+use maglab_identify::dynamics::{fit_eddy_and_damping, DynamicOptions};
 use maglab_identify::experiments::{load_split_dataset, ClassifyOptions};
 use maglab_identify::fit::{FitOptions, Unexcited};
 use maglab_identify::magnetization::{Branch, StaticModel};
-use maglab_identify::memory::InitialState;
+use maglab_identify::masses::{identify_masses, MassOptions};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
@@ -199,13 +197,13 @@ fn phase_lag_scheme_recovers_eddy_resistance_and_damping() {
 
     // 1. Preisach masses (base = the defaults: R, ξ, f0 = 70 Ω, 0.7783, 392 Hz).
     let base = actuator_params::paper_defaults();
-    let id = identify(
+    let id = identify_masses(
         &split.quasi_static_dataset(),
         &base,
         "paper defaults",
-        &IdentifyOptions {
+        &MassOptions {
             branch: Some(Branch::Monotone),
-            initial: Some(InitialState::NegativeSaturation),
+            initial: Some(StartState::NegativeSaturation),
             documented: None,
             lag_correction: None,
             current_shift_samples: 0.0,
@@ -234,7 +232,7 @@ fn phase_lag_scheme_recovers_eddy_resistance_and_damping() {
         phase_lag_resonance_hz: Some(TRUE_F0_HZ),
         simulation: maglab_identify::dynamics::simulate::SimulationOptions {
             current: CurrentBetweenSamples::Linear,
-            start: Start::NegativeSaturation,
+            start: StartState::NegativeSaturation,
             ..Default::default()
         },
         ..DynamicOptions::default()

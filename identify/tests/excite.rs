@@ -1,9 +1,9 @@
 //! The FORC excitation reaches every cell, and determines every mass: every column of the design
 //! matrix varies and the normal matrix `AᵀA` is positive definite.
 
+use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
+use maglab_dataset::StartState;
 use maglab_identify::design::{Design, Experiment, Grid};
-use maglab_identify::excite::{forc_excitation, ExciteOptions};
-use maglab_identify::memory::InitialState;
 use maglab_identify::CELL_COUNT;
 use nalgebra::{Cholesky, DMatrix};
 
@@ -45,7 +45,7 @@ fn forc_excitation_excites_and_determines_every_cell() {
             input: &h,
             output: &zeros,
             selected: &all,
-            initial: InitialState::NegativeSaturation,
+            initial: StartState::NegativeSaturation,
             weights: None,
         }],
         maglab_identify::fit::Reversible::None,
@@ -84,7 +84,7 @@ fn forc_excitation_excites_and_determines_every_cell() {
             input: &loop_h,
             output: &zeros,
             selected: &all,
-            initial: InitialState::NegativeSaturation,
+            initial: StartState::NegativeSaturation,
             weights: None,
         }],
         maglab_identify::fit::Reversible::None,

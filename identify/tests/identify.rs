@@ -4,12 +4,12 @@
 //! what was and was not identified.
 
 use host_tests::reference::preisach::RelayPreisach;
-use maglab_identify::actuator::{identify, IdentifyOptions};
-use maglab_identify::data::{load_dataset, write_measurement};
-use maglab_identify::excite::{forc_excitation, ExciteOptions};
+use maglab_dataset::data::{load_dataset, write_measurement};
+use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
+use maglab_dataset::StartState;
 use maglab_identify::fit::{FitOptions, Unexcited};
 use maglab_identify::magnetization::{Branch, StaticModel};
-use maglab_identify::memory::InitialState;
+use maglab_identify::masses::{identify_masses, MassOptions};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -75,10 +75,10 @@ fn paper_forc_record(seed: u64) -> (actuator_params::ActuatorParams, Vec<f64>, V
 /// The options for a sweep that starts at negative saturation and rises monotonically between
 /// reversals (`noisy_forc_record`), its current read `shift` samples later; cells the sweep
 /// never switches keep the prior masses.
-fn forc_options(shift: f64) -> IdentifyOptions {
-    IdentifyOptions {
+fn forc_options(shift: f64) -> MassOptions {
+    MassOptions {
         branch: Some(Branch::Monotone),
-        initial: Some(InitialState::NegativeSaturation),
+        initial: Some(StartState::NegativeSaturation),
         documented: None,
         lag_correction: None,
         current_shift_samples: shift,
@@ -95,7 +95,7 @@ fn forc_dataset_identifies_to_a_valid_parameter_file() {
     let (p, current_a, y) = paper_forc_record(5);
     let dir = dataset("forc", &current_a, &y);
     let ds = load_dataset(&dir).unwrap();
-    let id = identify(&ds, &p, "paper defaults", &forc_options(0.0)).unwrap();
+    let id = identify_masses(&ds, &p, "paper defaults", &forc_options(0.0)).unwrap();
     // Noise reaches below zero near M = 0: clipped and counted, not hidden.
     assert!(id.files[0].clipped_negative > 0);
     assert!(id.fit.unexcited.is_empty());
@@ -149,13 +149,13 @@ fn biased_data_reports_the_cells_it_cannot_reach() {
         .collect();
     let dir = dataset("biased", &current, &y);
     let ds = load_dataset(&dir).unwrap();
-    let id = identify(
+    let id = identify_masses(
         &ds,
         &p,
         "paper defaults",
-        &IdentifyOptions {
+        &MassOptions {
             branch: Some(Branch::Positive),
-            initial: Some(InitialState::Demagnetized),
+            initial: Some(StartState::DemagnetizedAtFirstInput),
             documented: None,
             lag_correction: None,
             current_shift_samples: 0.0,
@@ -213,14 +213,14 @@ fn a_reversible_part_is_identified_with_the_masses() {
     let ds = load_dataset(&dir).unwrap();
     let run = |reversible: Reversible| {
         let base = forc_options(0.0);
-        let options = IdentifyOptions {
+        let options = MassOptions {
             fit: FitOptions {
                 reversible,
                 ..base.fit
             },
             ..base
         };
-        identify(&ds, &p, "paper defaults", &options).unwrap()
+        identify_masses(&ds, &p, "paper defaults", &options).unwrap()
     };
     let with = run(Reversible::PiecewiseNoOffset);
     let without = run(Reversible::None);
@@ -284,7 +284,8 @@ fn a_channel_skew_is_taken_out_of_the_masses_by_the_current_shift() {
     let n = current_a.len();
     let dir = dataset("skew", &current_a[..n - skew], &y[skew..]);
     let ds = load_dataset(&dir).unwrap();
-    let run = |shift: f64| identify(&ds, &p, "paper defaults", &forc_options(shift)).unwrap();
+    let run =
+        |shift: f64| identify_masses(&ds, &p, "paper defaults", &forc_options(shift)).unwrap();
     let ms = p.actuator.saturation_magnetization_a_per_m;
     let l1 = |w: &[f64]| {
         w.iter()

@@ -4,8 +4,8 @@
 //! tests run need it) that build cost ~60-70 s of CPU in every clean CI run (`Cargo.toml`,
 //! `[lib] test = false`). The few internals they call are `#[doc(hidden)] pub`.
 
-mod actuator {
-    use maglab_identify::actuator::shifted;
+mod masses {
+    use maglab_identify::masses::shifted;
 
     #[test]
     fn shifted_reads_later_samples_linearly_and_holds_the_ends() {
@@ -17,7 +17,7 @@ mod actuator {
         assert!(shifted(&[], 0.3).is_empty());
     }
 
-    use maglab_identify::actuator::{
+    use maglab_identify::masses::{
         displacement_noise_m, fit_floor_m, LagCorrection, SQRT_NOISE_BIAS_MAX,
     };
     use rand::SeedableRng;
@@ -174,25 +174,10 @@ mod drift {
         );
     }
 }
-mod golden {
-    use maglab_identify::golden::*;
-
-    #[test]
-    fn finds_the_minimum_of_a_parabola_to_the_bracket_width() {
-        let x = golden_section_min(-1.0, 3.0, 40, |x| (x - 0.7).powi(2));
-        assert!((x - 0.7).abs() < 4.0 * 0.62f64.powi(40) + 1e-9, "{x}");
-    }
-
-    #[test]
-    fn a_minimum_at_the_edge_is_approached() {
-        let x = golden_section_min(0.0, 1.0, 30, |x| x);
-        assert!(x < 1e-5, "{x}");
-    }
-}
 mod lines {
+    use maglab_dataset::StartState;
     use maglab_identify::design::{Experiment, Grid};
     use maglab_identify::lines::*;
-    use maglab_identify::memory::InitialState;
 
     fn experiment<'a>(input: &'a [f64], output: &'a [f64], selected: &'a [bool]) -> Experiment<'a> {
         Experiment {
@@ -200,7 +185,7 @@ mod lines {
             input,
             output,
             selected,
-            initial: InitialState::Periodic,
+            initial: StartState::Periodic,
             weights: None,
         }
     }
@@ -288,7 +273,7 @@ mod lines {
     }
 }
 mod quality {
-    use maglab_identify::actuator::FileReport;
+    use maglab_identify::masses::FileReport;
     use maglab_identify::quality::*;
 
     fn file(nrmse: f64, above: usize) -> FileReport {
@@ -373,54 +358,6 @@ mod quality {
         assert!(search_bound_warnings([98.0, 2.86, 470.4], centre, factors).is_empty());
     }
 }
-mod spectrum {
-    use maglab_identify::spectrum::*;
-    use std::f64::consts::PI;
-
-    #[test]
-    fn a_biased_sine_with_harmonics_gives_its_frequency_and_phase() {
-        let step = 1e-4;
-        let f = 47.3;
-        let x: Vec<f64> = (0..6000)
-            .map(|k| {
-                let t = k as f64 * step;
-                2.0 + 0.7 * (2.0 * PI * f * t + 0.4).sin() + 0.3 * (4.0 * PI * f * t + 1.0).cos()
-            })
-            .collect();
-        let tone = dominant_tone(&x, step).unwrap();
-        // Bin = 1/0.6 s = 1.67 Hz; the interpolation lands within 5 % of a bin.
-        assert!(
-            (tone.frequency_hz - f).abs() < 0.05 * tone.bin_hz,
-            "{tone:?}"
-        );
-        assert!(tone.tonal_fraction > 0.7, "{tone:?}");
-        let refined = refine_frequency(&x, step, &tone, 3);
-        assert!((refined - f).abs() < 1e-6, "{refined}");
-        let fit = harmonic_fit(&x, step, refined, 0..x.len(), 3).unwrap();
-        assert!((fit.amplitude() - 0.7).abs() < 1e-6);
-        assert!((fit.phase_rad() - 0.4).abs() < 1e-6);
-        assert!((fit.mean - 2.0).abs() < 1e-6);
-    }
-
-    #[test]
-    fn a_reversal_sequence_is_not_tonal() {
-        // Reversals of decreasing amplitude at a constant sweep rate (like a FORC excitation):
-        // the half-period shrinks with the amplitude, so the power spreads over many bins.
-        let mut x = Vec::new();
-        for a in (1..=20).rev() {
-            let amp = a as f64;
-            let n = 10 * a;
-            for k in 0..n {
-                x.push(-amp + 2.0 * amp * k as f64 / n as f64);
-            }
-            for k in 0..n {
-                x.push(amp - 2.0 * amp * k as f64 / n as f64);
-            }
-        }
-        let tone = dominant_tone(&x, 1e-3).unwrap();
-        assert!(tone.tonal_fraction < 0.9, "{tone:?}");
-    }
-}
 mod dynamics_phase_lag {
     use maglab_identify::dynamics::phase_lag::*;
 
@@ -439,5 +376,40 @@ mod dynamics_phase_lag {
         assert!((m[0] - 1.0).abs() < 1e-12 && (m[39] - 500.0).abs() < 1e-9);
         let ratio = m[1] / m[0];
         assert!(m.windows(2).all(|w| (w[1] / w[0] - ratio).abs() < 1e-9));
+    }
+}
+
+mod model {
+    use maglab_dataset::StartState;
+    use maglab_identify::design::Grid;
+    use maglab_identify::model::{PreisachModel, FORMAT, FORMAT_1};
+
+    /// A model file of the first format reads with its start state renamed: `demagnetized`
+    /// meant around the first input there, `demagnetized-at-zero` what `demagnetized` means now.
+    #[test]
+    fn a_first_format_model_file_reads_with_its_start_state_renamed() {
+        let weights = vec![1.0; maglab_identify::CELL_COUNT];
+        let model = PreisachModel::from_weights(
+            Grid::uniform(-1.0, 1.0),
+            &weights,
+            StartState::NegativeSaturation,
+        );
+        let dir = std::env::temp_dir().join(format!("preisach-model-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (old, new) in [
+            ("demagnetized", StartState::DemagnetizedAtFirstInput),
+            ("demagnetized-at-zero", StartState::Demagnetized),
+            ("periodic", StartState::Periodic),
+        ] {
+            let mut v = serde_json::to_value(&model).unwrap();
+            v["format"] = FORMAT_1.into();
+            v["initial_state"] = old.into();
+            let path = dir.join("old.json");
+            std::fs::write(&path, v.to_string()).unwrap();
+            let back = PreisachModel::load(&path).unwrap();
+            assert_eq!(back.initial_state, new, "{old}");
+            assert_eq!(back.format, FORMAT);
+        }
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -7,10 +7,10 @@
 //! covers floating-point and solver-tolerance differences across platforms (orders of magnitude
 //! smaller) — a regression that worsens the fit by more than that fails the test.
 
+use maglab_dataset::StartState;
 use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter};
 use maglab_identify::fit::{FitOptions, Reversible, Unexcited};
 use maglab_identify::lines::LineChoice;
-use maglab_identify::memory::InitialState;
 use maglab_identify::model::{fit_table, predict_table, DEFAULT_RANGE_MARGIN};
 use std::path::PathBuf;
 
@@ -90,7 +90,7 @@ fn bh_loops_fit_two_amplitudes_predict_the_others() {
             &spec,
             None,
             DEFAULT_RANGE_MARGIN,
-            InitialState::Periodic,
+            StartState::Periodic,
             lines,
             true,
             &options,
@@ -139,7 +139,7 @@ fn piezo_fit_early_cycles_predict_later_ones() {
         &spec,
         None,
         DEFAULT_RANGE_MARGIN,
-        InitialState::Demagnetized,
+        StartState::DemagnetizedAtFirstInput,
         LineChoice::Auto,
         true,
         &OPTIONS,

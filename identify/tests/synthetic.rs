@@ -3,10 +3,10 @@
 //! model must predict held-out input sequences within 1 % of the output range (issue 4).
 
 use host_tests::reference::preisach::RelayPreisach;
+use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
+use maglab_dataset::StartState;
 use maglab_identify::design::{Experiment, Grid};
-use maglab_identify::excite::{forc_excitation, ExciteOptions};
 use maglab_identify::fit::{fit, FitOptions, Unexcited};
-use maglab_identify::memory::InitialState;
 use maglab_identify::model::{nrmse, PreisachModel};
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -88,7 +88,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
             input: &h,
             output: &m,
             selected: &selected,
-            initial: InitialState::NegativeSaturation,
+            initial: StartState::NegativeSaturation,
             weights: None,
         }],
         None,
@@ -110,8 +110,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
         0.002 * range,
         result.solver
     );
-    let model =
-        PreisachModel::from_weights(grid, &result.weights, InitialState::NegativeSaturation);
+    let model = PreisachModel::from_weights(grid, &result.weights, StartState::NegativeSaturation);
     let mut worst = 0.0f64;
     for seed in 0..3 {
         let input = held_out(seed, h_min, h_max);
@@ -130,7 +129,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
             .map(|&x| h_min + x as f64 * width)
             .collect();
         let full: Vec<f64> = prefix.iter().chain(&input).copied().collect();
-        let predicted = model.predict(&full, InitialState::NegativeSaturation);
+        let predicted = model.predict(&full, StartState::NegativeSaturation);
         let predicted = &predicted[prefix.len()..];
         let err: f64 = (predicted
             .iter()
@@ -178,7 +177,7 @@ fn the_mass_bound_keeps_the_masses_at_saturation() {
                 input: &h,
                 output: &m,
                 selected: &selected,
-                initial: InitialState::NegativeSaturation,
+                initial: StartState::NegativeSaturation,
                 weights: None,
             }],
             None,

@@ -8,7 +8,7 @@ use anyhow::{anyhow, Context, Result};
 use clap::Args as ClapArgs;
 use indicatif::{ProgressBar, ProgressStyle};
 use maglab_diagnose::diagnosis::{diagnose, DiagnoseOptions, DiagnosisRun};
-use maglab_diagnose::signal;
+use maglab_signal::spectrum;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -32,14 +32,14 @@ pub struct Args {
 pub fn run(args: &Args) -> Result<()> {
     let params =
         actuator_params::ActuatorParams::load(&args.params).context("invalid parameter file")?;
-    let dataset = maglab_identify::data::load_dataset(&args.dataset).map_err(|e| anyhow!("{e}"))?;
+    let dataset = maglab_dataset::data::load_dataset(&args.dataset).map_err(|e| anyhow!("{e}"))?;
     for p in &dataset.ignored {
         println!("note: not a measurement file, not read: {}", p.display());
     }
     if args.substeps == 0 {
         return Err(anyhow!("--substeps must be at least 1"));
     }
-    let documented = maglab_identify::dataset_info::DatasetInfo::load(&args.dataset)
+    let documented = maglab_dataset::dataset_info::DatasetInfo::load(&args.dataset)
         .map_err(|e| anyhow!("{e}"))?;
     let options = DiagnoseOptions {
         substeps: args.substeps,
@@ -219,7 +219,7 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
              verdict; only the extrapolation to the held-out experiments ranks them. A measurement \
              that separates them decides (the coil's current for an amplifier, the sensor's step \
              response for a sensor, the rod's resonance without the load for a load).\n",
-            100.0 * (maglab_diagnose::diagnosis::EQUAL_ON_TRAINING - 1.0),
+            100.0 * (maglab_diagnose::diagnosis::rules::EQUAL_ON_TRAINING - 1.0),
             d.equal_on_training.join(", ")
         );
     }
@@ -240,7 +240,7 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
             "Tied on the held-out experiments (within {:.0} %): {} against {}. The data do not \
              rank them; the verdict goes to the fit that needs fewer of R_eddy, xi, f0 and the \
              channel skew at an end of their band.\n",
-            100.0 * (maglab_diagnose::diagnosis::EQUAL_HELD_OUT - 1.0),
+            100.0 * (maglab_diagnose::diagnosis::rules::EQUAL_HELD_OUT - 1.0),
             fit(&tie.tied[0]),
             others.join(", "),
         );
@@ -543,7 +543,7 @@ fn plots(run: &DiagnosisRun, out: &Path) -> Result<Vec<&'static str>> {
         ("nominal", &t.nominal_m, PALETTE[1]),
         (label.as_str(), &t.augmented_m, PALETTE[2]),
     ] {
-        let spec = signal::amplitude_spectrum(&resid(ys), t.rate_hz, true);
+        let spec = spectrum::amplitude_spectrum(&resid(ys), t.rate_hz, true);
         panel.series.push(Series {
             label: Some(name.to_string()),
             points: spec

@@ -5,10 +5,10 @@
 
 use anyhow::{anyhow, Context, Result};
 use clap::Parser;
+use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
+use maglab_dataset::StartState;
 use maglab_identify::design::{Design, Experiment, Grid};
-use maglab_identify::excite::{forc_excitation, ExciteOptions};
 use maglab_identify::magnetization::StaticModel;
-use maglab_identify::memory::InitialState;
 use maglab_identify::model::PreisachModel;
 use std::path::PathBuf;
 
@@ -72,7 +72,7 @@ pub fn run(args: &Args) -> Result<()> {
             input: &h,
             output: &zeros,
             selected: &all,
-            initial: InitialState::NegativeSaturation,
+            initial: StartState::NegativeSaturation,
             weights: None,
         }],
         maglab_identify::fit::Reversible::None,
@@ -119,7 +119,7 @@ pub fn run(args: &Args) -> Result<()> {
         let model = PreisachModel::from_weights(
             grid,
             &params.preisach.weights_a_per_m,
-            InitialState::NegativeSaturation,
+            StartState::NegativeSaturation,
         );
         let statics = StaticModel {
             rod_length_m: params.actuator.rod_length_m,
@@ -127,11 +127,11 @@ pub fn run(args: &Args) -> Result<()> {
             saturation_magnetization_a_per_m: params.actuator.saturation_magnetization_a_per_m,
         };
         let y: Vec<f64> = model
-            .predict(&h, InitialState::NegativeSaturation)
+            .predict(&h, StartState::NegativeSaturation)
             .iter()
             .map(|&m| statics.displacement_m(m))
             .collect();
-        maglab_identify::data::write_measurement(
+        maglab_dataset::data::write_measurement(
             &args.output,
             &excitation.t_s,
             &excitation.current_a,

@@ -21,7 +21,14 @@ use magctl::link::{
     CommandFrame, Sample, SampleFrame, COMMAND_FRAME_BYTES, KIND_BEGIN, KIND_COMMAND, KIND_END,
 };
 use magctl::sensor::SensorScale;
-use maglab_identify::dataset_info::StartState;
+use maglab_dataset::StartState;
+
+/// The rod's state before the firmware starts (`--start`): it then conditions the rod itself.
+const HIL_STARTS: [StartState; 3] = [
+    StartState::NegativeSaturation,
+    StartState::PositiveSaturation,
+    StartState::Demagnetized,
+];
 use maglab_plant::{Effect, Plant};
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -87,14 +94,8 @@ pub fn run(args: &Args) -> Result<()> {
     if !(args.noise_m.is_finite() && args.noise_m >= 0.0) {
         bail!("--noise-m must be >= 0, got {}", args.noise_m);
     }
-    let start = match args.start.as_str() {
-        "negative-saturation" => StartState::NegativeSaturation,
-        "positive-saturation" => StartState::PositiveSaturation,
-        "demagnetized" => StartState::Demagnetized,
-        other => bail!(
-            "--start `{other}`: expected negative-saturation, positive-saturation or demagnetized"
-        ),
-    };
+    let start = StartState::parse_among(&args.start, &HIL_STARTS)
+        .map_err(|e| anyhow::anyhow!("--start: {e}"))?;
     let loaded = params_io::load(args.params.as_deref())?;
     let scale = SensorScale::new(&loaded.params.sensor);
     let limit_a = loaded.params.control.current_limit_a as f64;
@@ -112,7 +113,7 @@ pub fn run(args: &Args) -> Result<()> {
     let rate_hz = begin.value as f64;
     let ticks = begin.aux32;
     let mut plant = Plant::new(&loaded.file, &effects, rate_hz).map_err(|e| anyhow::anyhow!(e))?;
-    plant.start(start, 0.0);
+    plant.start(start, 0.0).map_err(|e| anyhow::anyhow!(e))?;
     let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
     if args.prior_history > 0 {
         let hold = (0.005 * rate_hz).ceil() as usize;
@@ -126,7 +127,9 @@ pub fn run(args: &Args) -> Result<()> {
         for _ in 0..4 * hold {
             plant.advance(0.0, 0.0);
         }
-        plant.start(StartState::Previous, 0.0);
+        plant
+            .start(StartState::Previous, 0.0)
+            .map_err(|e| anyhow::anyhow!(e))?;
     }
     let noise = Normal::new(0.0, args.noise_m.max(f64::MIN_POSITIVE))
         .map_err(|e| anyhow::anyhow!("noise: {e}"))?;

@@ -15,10 +15,11 @@ use crate::plot::{Figure, Panel, Series, PALETTE};
 use crate::plot_preisach::WeightMap;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
+use maglab_dataset::StartState;
 use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter, Table};
 use maglab_identify::fit::{FitOptions, Reversible, Unexcited};
 use maglab_identify::lines::LineChoice;
-use maglab_identify::memory::InitialState;
+use maglab_identify::memory::PREISACH_STARTS;
 use maglab_identify::model::{fit_table, predict_table, PreisachModel, DEFAULT_RANGE_MARGIN};
 use std::path::{Path, PathBuf};
 
@@ -54,10 +55,11 @@ pub struct FitArgs {
     #[arg(long, default_value = "auto")]
     grid_lines: String,
     /// Initial memory of each experiment: auto, negative-saturation, positive-saturation,
-    /// demagnetized (around the first input), demagnetized-at-zero, periodic (the experiment is
-    /// one period of a periodic steady state). `auto`: periodic when every experiment is a
-    /// closed loop (it ends where it started, in input and output, within 2 % of its ranges),
-    /// else demagnetized; the choice is printed.
+    /// demagnetized-at-first-input (AC-demagnetized around the first input), demagnetized
+    /// (around zero input), periodic (the experiment is one period of a periodic steady state).
+    /// `auto`: periodic when every experiment is a closed loop (it ends where it started, in
+    /// input and output, within 2 % of its ranges), else demagnetized-at-first-input; the choice
+    /// is printed.
     #[arg(long, default_value = "auto")]
     initial: String,
     /// Smoothness weight λ_s (see maglab_identify::fit), or auto: chosen from 1e-7, 1e-6, 1e-5
@@ -191,8 +193,11 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         println!("initial state auto: {} ({why})", chosen.name());
         chosen
     } else {
-        InitialState::parse(&args.initial).map_err(|e| {
-            anyhow!("--initial: {e}, or auto (periodic for closed loops, else demagnetized)")
+        StartState::parse_among(&args.initial, &PREISACH_STARTS).map_err(|e| {
+            anyhow!(
+                "--initial: {e}, or auto (periodic for closed loops, else \
+                 demagnetized-at-first-input)"
+            )
         })?
     };
     let lines = LineChoice::parse(&args.grid_lines).map_err(|e| anyhow!("--grid-lines: {e}"))?;
@@ -379,7 +384,7 @@ fn loops_figure(
 /// Runs `preisach-predict`.
 /// `--initial auto`: periodic when every experiment is a closed loop (its last sample within 2 %
 /// of its input and output ranges of its first), else demagnetized.
-fn auto_initial(table: &Table) -> (InitialState, String) {
+fn auto_initial(table: &Table) -> (StartState, String) {
     let closed = |input: &[f64], output: &[f64]| -> bool {
         let span = |v: &[f64]| {
             let (lo, hi) = v
@@ -405,12 +410,12 @@ fn auto_initial(table: &Table) -> (InitialState, String) {
         .count();
     if n > 0 && closed_count == n {
         (
-            InitialState::Periodic,
+            StartState::Periodic,
             format!("all {n} experiments are closed loops"),
         )
     } else {
         (
-            InitialState::Demagnetized,
+            StartState::DemagnetizedAtFirstInput,
             format!("{closed_count} of {n} experiments are closed loops"),
         )
     }

@@ -8,9 +8,9 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args as ClapArgs;
-use maglab_identify::dataset_info::StartState;
+use maglab_dataset::{CurrentBetweenSamples, StartState};
 use maglab_plant::bench::{self, BenchSettings, Experiment};
-use maglab_plant::{CurrentBetweenSamples, Effect, EFFECTS};
+use maglab_plant::{Effect, EFFECTS, PLANT_STARTS};
 use std::path::PathBuf;
 
 /// Arguments of `maglab rig`.
@@ -118,12 +118,10 @@ pub fn run(args: &Args) -> Result<()> {
             bail!("{name}: every value must be a positive number, got {v}");
         }
     }
-    let start = StartState::parse(&args.start).map_err(|e| anyhow!("--start: {e}"))?;
-    let current_between_samples = match args.current_between_samples.as_str() {
-        "hold" => CurrentBetweenSamples::Hold,
-        "linear" => CurrentBetweenSamples::Linear,
-        other => bail!("--current-between-samples: `{other}`: expected hold or linear"),
-    };
+    let start =
+        StartState::parse_among(&args.start, &PLANT_STARTS).map_err(|e| anyhow!("--start: {e}"))?;
+    let current_between_samples = CurrentBetweenSamples::parse(&args.current_between_samples)
+        .map_err(|e| anyhow!("--current-between-samples: {e}"))?;
     let settings = BenchSettings {
         rate_hz: args.rate_hz,
         current_between_samples,
@@ -176,7 +174,7 @@ pub fn run(args: &Args) -> Result<()> {
     let mut recordings = recordings;
     let paths = bench::write_dataset(out, &recordings).map_err(|e| anyhow!(e))?;
     if args.undocumented {
-        std::fs::remove_file(out.join(maglab_identify::dataset_info::FILE_NAME)).ok();
+        std::fs::remove_file(out.join(maglab_dataset::dataset_info::FILE_NAME)).ok();
     }
     println!(
         "wrote {} experiments to {} ({:.1} s of plant time at {} Hz in {:.1} s){}",

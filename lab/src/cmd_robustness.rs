@@ -28,7 +28,7 @@ use clap::Args as ClapArgs;
 use magctl::inverse::{ControlLoop, InverseKind, LoopState};
 use magctl::params::{ActuatorParameters, Feedback};
 use magctl::sensor::SensorScale;
-use maglab_identify::dataset_info::StartState;
+use maglab_dataset::StartState;
 use maglab_plant::{Effect, Plant};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -243,10 +243,12 @@ pub fn run_case(
         .map_err(|e| anyhow::anyhow!("{}: {e}", case.name))?;
     let mut state: LoopState<{ magctl::preisach::DEFAULT_CAPACITY }> = control.init(kind);
     let d0 = control.trajectory().motion(&state.core.trajectory);
-    plant.start(
-        StartState::NegativeSaturation,
-        state.core.last_current_a as f64,
-    );
+    plant
+        .start(
+            StartState::NegativeSaturation,
+            state.core.last_current_a as f64,
+        )
+        .map_err(|e| anyhow::anyhow!(e))?;
     plant.set_motion(d0.displacement_m as f64, d0.velocity_m_per_s as f64);
     let scale = SensorScale::new(&controller.sensor);
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);

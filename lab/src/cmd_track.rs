@@ -26,8 +26,9 @@ use crate::params_io::{self, LoadedParams};
 use crate::plot::{Figure, Panel, Series, PALETTE};
 use anyhow::{bail, Context, Result};
 use clap::Args as ClapArgs;
+use magctl::board::capture_phase::CapturePhase;
 use magctl::inverse::{ControlLoop, InverseKind};
-use maglab_identify::dataset_info::StartState;
+use maglab_dataset::StartState;
 use maglab_plant::{Effect, Plant};
 use std::path::{Path, PathBuf};
 
@@ -104,13 +105,16 @@ pub fn read_capture(path: &Path) -> Result<[(Vec<f32>, Vec<f64>); 2]> {
         let line = k + 2;
         let record = record.with_context(|| format!("{}: line {line}", path.display()))?;
         let field = |i: usize| record.get(i).unwrap_or("");
-        let slot = match field(phase) {
-            "dynamic" => 0,
-            "static" => 1,
-            "naive" => continue,
-            other => bail!(
-                "{}: line {line}: unknown phase `{other}` (dynamic, static or naive)",
-                path.display()
+        let slot = match CapturePhase::from_name(field(phase)) {
+            Some(CapturePhase::Dynamic) => 0,
+            Some(CapturePhase::Static) => 1,
+            // The benchmark's other phases (baselines, merge stress) track nothing.
+            Some(_) => continue,
+            None => bail!(
+                "{}: line {line}: unknown phase `{}` (one of {})",
+                path.display(),
+                field(phase),
+                CapturePhase::ALL.map(CapturePhase::name).join(", ")
             ),
         };
         let number = |i: usize, name: &str| -> Result<f64> {
@@ -195,10 +199,12 @@ fn plant_response(
         control.init(kind);
     let desired = control.trajectory().motion(&start.core.trajectory);
     let c0 = loaded.params.actuator.coil_factor_per_m as f64;
-    plant.start(
-        StartState::NegativeSaturation,
-        start.core.memory.h_a_per_m as f64 / c0,
-    );
+    plant
+        .start(
+            StartState::NegativeSaturation,
+            start.core.memory.h_a_per_m as f64 / c0,
+        )
+        .map_err(|e| anyhow::anyhow!(e))?;
     plant.set_motion(
         desired.displacement_m as f64,
         desired.velocity_m_per_s as f64,
@@ -481,7 +487,12 @@ mod tests {
                 ));
             }
         }
-        text.push_str("naive,0,0,1.0,2e-5,400000\n");
+        // Every other phase the benchmark run writes is read and skipped.
+        for phase in CapturePhase::ALL {
+            if !matches!(phase, CapturePhase::Dynamic | CapturePhase::Static) {
+                text.push_str(&format!("{},0,0,1.0,2e-5,400000\n", phase.name()));
+            }
+        }
         let path = dir.join("capture.csv");
         std::fs::write(&path, text).unwrap();
         let replay = track(&loaded, 0.01, &[], Some(&path)).unwrap();

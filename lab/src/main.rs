@@ -23,6 +23,7 @@ mod cmd_simulate;
 mod cmd_track;
 mod params_io;
 mod plot;
+mod plot_identify;
 mod plot_preisach;
 
 use clap::{Parser, Subcommand};
@@ -73,7 +74,20 @@ enum Command {
 /// Exit code for an invalid parameter file.
 const EXIT_INVALID_PARAMS: u8 = 2;
 
+/// Writing to a closed pipe (`maglab params check FILE | head`) ends the process quietly, as it
+/// does for every Unix tool: Rust ignores SIGPIPE by default, and `println!` then panics on the
+/// broken pipe. The default action is restored before anything is written.
+fn end_quietly_on_a_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: `signal` with `SIG_DFL` only resets the disposition of SIGPIPE; it is called once,
+    // before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    end_quietly_on_a_closed_pipe();
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Loops(args) => cmd_loops::run(args),

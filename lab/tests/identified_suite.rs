@@ -97,7 +97,7 @@ fn write_case(
     write_dataset(&data, &recordings).expect("dataset written");
     if !case.documented {
         // Only the identification sweep's start is documented.
-        let mut info = maglab_identify::dataset_info::DatasetInfo::load(&data)
+        let mut info = maglab_dataset::dataset_info::DatasetInfo::load(&data)
             .expect("dataset.json")
             .expect("written");
         info.files.retain(|name, _| name.starts_with("00_forc"));

@@ -1,13 +1,13 @@
 //! The alternation of `maglab identify` (the masses and R_eddy, ξ, f0 in turn) searches R_eddy,
 //! ξ, f0 where its first pass did: around the base file's values, within
-//! [`maglab_diagnose::identification::IDENTIFICATION_RANGE`], the ends its quality warnings
+//! [`maglab_model::candidates::IDENTIFICATION_RANGE`], the ends its quality warnings
 //! name. With an amplifier lag in the sines (150 Hz; the paper's model has none) the search used
 //! to be re-centred on each pass's result, and f0 walked from the datasheet's 470 Hz to 128 Hz
 //! by the third pass, below the 235 Hz end the warning named, into constants a diagnosis could
 //! not take the lag back out of.
 mod common;
 use common::maglab;
-use maglab_diagnose::identification::IDENTIFICATION_RANGE;
+use maglab_model::candidates::IDENTIFICATION_RANGE;
 
 #[test]
 fn every_pass_of_the_alternation_searches_around_the_base_file() {

@@ -243,6 +243,13 @@ impl Provenance {
     pub const IDENTIFIED: &'static str = "identified";
     /// Key of the identification's quality warnings (`maglab identify` writes it).
     pub const WARNINGS: &'static str = "warnings";
+    /// The fields of the dynamic constants `R_eddy`, `ξ`, `f0`, in that order: what the
+    /// identification fits from sines and the diagnosis refits.
+    pub const DYNAMIC_FIELDS: [&'static str; 3] = [
+        "actuator.eddy_resistance_ohm",
+        "actuator.damping_ratio",
+        "actuator.resonance_hz",
+    ];
 
     /// The fields listed under [`Self::IDENTIFIED`] (empty when there is none).
     pub fn identified_fields(&self) -> Vec<&str> {

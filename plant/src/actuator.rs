@@ -50,8 +50,17 @@ const BESSEL_J0_ZEROS: [f64; 8] = [
     24.352_471_530_7,
 ];
 
-pub use maglab_identify::dataset_info::StartState;
-pub use maglab_identify::dynamics::CurrentBetweenSamples;
+use maglab_dataset::StartState;
+
+/// The start states the plant can be put in ([`Plant::start`]): every state but `periodic`.
+pub const PLANT_STARTS: [StartState; 6] = [
+    StartState::SwitchOnDemagnetized,
+    StartState::Demagnetized,
+    StartState::DemagnetizedAtFirstInput,
+    StartState::NegativeSaturation,
+    StartState::PositiveSaturation,
+    StartState::Previous,
+];
 
 #[derive(Debug, Clone, Copy)]
 struct Amplifier {
@@ -291,8 +300,9 @@ impl Plant {
     }
 
     /// Puts the plant in `start` before an experiment whose first command is `first_command_a`;
-    /// the experiment's time starts at 0.
-    pub fn start(&mut self, start: StartState, first_command_a: f64) {
+    /// the experiment's time starts at 0. `periodic` is a property of a whole record, not a
+    /// state the plant can be put in: an error.
+    pub fn start(&mut self, start: StartState, first_command_a: f64) -> Result<(), String> {
         match start {
             StartState::Previous => {}
             StartState::SwitchOnDemagnetized => {
@@ -321,12 +331,30 @@ impl Plant {
                 self.memory = PreisachMemory::positive_saturation(&self.grid);
                 self.settle_at_rest(first_command_a, true);
             }
+            StartState::DemagnetizedAtFirstInput => {
+                self.memory = PreisachMemory::ac_demagnetized(
+                    &self.grid,
+                    self.constants.c0_per_m * first_command_a,
+                    DEMAG_RATIO,
+                    DEMAG_FLOOR_A_PER_M,
+                );
+                self.settle_at_rest(first_command_a, true);
+            }
+            StartState::Periodic => {
+                return Err(
+                    "the bench plant cannot start `periodic`: it is a property of a \
+                     record, not a state (play the record once, then record it again with \
+                     `previous`)"
+                        .into(),
+                )
+            }
         }
         self.t_s = 0.0;
         let s = self.sensor_state_output();
         self.history.clear();
         self.history.push(s);
         self.history_t0_s = 0.0;
+        Ok(())
     }
 
     /// Sets the rod's motion (and a load's, rigidly) at the present instant: displacement `y_m`,

@@ -8,15 +8,16 @@
 //! of a logger are rarely sampled at the same instant) plus the sensor's offset, white noise and
 //! quantization. None of these bench facts is written into the dataset: only what an
 //! experimenter documents, the start state of each experiment (`dataset.json`,
-//! `maglab_identify::dataset_info`). The effects and the nuisances go to a separate manifest.
+//! `maglab_dataset::dataset_info`). The effects and the nuisances go to a separate manifest.
 //!
 //! Experiments whose start state is `previous` run after the one before them on the same plant;
 //! a dataset without them runs its experiments in parallel (rayon).
 
-use crate::actuator::{CurrentBetweenSamples, Plant, StartState};
+use crate::actuator::Plant;
 use crate::effects::Effect;
 use actuator_params::ActuatorParams;
-use maglab_identify::dataset_info::{DatasetInfo, FileInfo};
+use maglab_dataset::dataset_info::{DatasetInfo, FileInfo};
+use maglab_dataset::{CurrentBetweenSamples, StartState};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
@@ -137,15 +138,16 @@ pub fn forc_experiment(
     sweep_hz: f64,
     rate_hz: f64,
 ) -> Result<Experiment, String> {
-    let e = maglab_identify::excite::forc_excitation(&maglab_identify::excite::ExciteOptions {
-        h_min_a_per_m: params.preisach.h_min_a_per_m,
-        h_max_a_per_m: params.preisach.h_max_a_per_m,
-        coil_factor_per_m: params.actuator.coil_factor_per_m,
-        sweep_rate_hz: sweep_hz,
-        sample_rate_hz: rate_hz,
-        overdrive: 0.05,
-    })
-    .map_err(|e| e.to_string())?;
+    let e =
+        maglab_dataset::excitation::forc_excitation(&maglab_dataset::excitation::ExciteOptions {
+            h_min_a_per_m: params.preisach.h_min_a_per_m,
+            h_max_a_per_m: params.preisach.h_max_a_per_m,
+            coil_factor_per_m: params.actuator.coil_factor_per_m,
+            sweep_rate_hz: sweep_hz,
+            sample_rate_hz: rate_hz,
+            overdrive: 0.05,
+        })
+        .map_err(|e| e.to_string())?;
     Ok(Experiment {
         name: "00_forc".into(),
         start: StartState::NegativeSaturation,
@@ -187,7 +189,9 @@ pub fn record(
     if let Some((k, v)) = cmd.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(format!("{}: command sample {k} is {v}", experiment.name));
     }
-    plant.start(experiment.start, cmd[0]);
+    plant
+        .start(experiment.start, cmd[0])
+        .map_err(|e| format!("{}: {e}", experiment.name))?;
     let n = cmd.len();
     for k in 0..n {
         let end = match settings.current_between_samples {
@@ -272,7 +276,7 @@ pub fn write_dataset(dir: &Path, recordings: &[Recording]) -> Result<Vec<PathBuf
     for r in recordings {
         let file = format!("{}.csv", r.name);
         let path = dir.join(&file);
-        maglab_identify::data::write_measurement(&path, &r.t_s, &r.current_a, &r.displacement_m)
+        maglab_dataset::data::write_measurement(&path, &r.t_s, &r.current_a, &r.displacement_m)
             .map_err(|e| e.to_string())?;
         info.files.insert(
             file,

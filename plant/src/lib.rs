@@ -14,6 +14,6 @@ pub mod effects;
 pub mod preisach;
 pub mod suite;
 
-pub use actuator::{CurrentBetweenSamples, Plant, PlantConstants, StartState};
+pub use actuator::{Plant, PlantConstants, PLANT_STARTS};
 pub use bench::{BenchSettings, Experiment, Recording};
 pub use effects::{Effect, EffectSpec, EFFECTS};

@@ -1,6 +1,6 @@
 //! The plant's own Preisach operator, in f64, written independently of the core
 //! (`magctl::preisach`, f32 Everett tables with a bounded staircase) and of the identification's
-//! regressors (`maglab_identify::cells`).
+//! regressors (`maglab_identify::cells` computes them for the identification).
 //!
 //! **Measure.** The parameter file gives one mass per cell of a grid of `L` input intervals with
 //! edges `x_0 < x_1 < … < x_L` (A/m), spread uniformly over the cell: the square

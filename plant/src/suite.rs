@@ -30,10 +30,10 @@
 //! periods of the lowest frequency, and at most 2e5 samples in all where those allow it): a
 //! bench's own choice, which a diagnosis must not depend on.
 
-use crate::actuator::{CurrentBetweenSamples, StartState};
 use crate::bench::{record, record_all, sine_experiment, BenchSettings, Experiment, Recording};
 use crate::effects::{Effect, EFFECTS};
 use actuator_params::ActuatorParams;
+use maglab_dataset::{CurrentBetweenSamples, StartState};
 use rand::{Rng, RngExt, SeedableRng};
 
 /// The experiment design of a case (module docs).
@@ -317,7 +317,7 @@ pub fn gap_between(with: &GapRuns, without: &GapRuns) -> f64 {
     };
     // The common shift: the best for the lowest and highest frequencies together.
     let joint = |shift: f64| rms(shift, true).powi(2) + rms(shift, false).powi(2);
-    let best = maglab_identify::golden::golden_section_min(
+    let best = maglab_signal::golden::golden_section_min(
         -NUISANCE_SHIFT_SAMPLES,
         NUISANCE_SHIFT_SAMPLES,
         30,

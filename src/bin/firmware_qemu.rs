@@ -65,6 +65,7 @@ pub use firmware::*;
 mod firmware {
     use core::sync::atomic::{AtomicBool, Ordering};
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
+    use magctl::board::capture_phase::CapturePhase;
     use magctl::board::handoff::HandOff;
     use magctl::board::mps2_an386::capture::{encode, Record, Ring};
     use magctl::board::mps2_an386::semihosting::{self, HostFile};
@@ -109,13 +110,14 @@ mod firmware {
         instructions / 5 * 128
     }
 
-    const PHASE_CALIBRATION: u8 = 0;
-    const PHASE_DYNAMIC: u8 = 1;
-    const PHASE_STATIC: u8 = 2;
-    const PHASE_NAIVE: u8 = 3;
-    const PHASE_MERGE: u8 = 4;
-    const PHASE_EVERETT: u8 = 5;
-    const PHASE_RELAY: u8 = 6;
+    const PHASE_CALIBRATION: u8 = CapturePhase::Calibration.code();
+    const PHASE_DYNAMIC: u8 = CapturePhase::Dynamic.code();
+    const PHASE_STATIC: u8 = CapturePhase::Static.code();
+    const PHASE_NAIVE: u8 = CapturePhase::Naive.code();
+    const PHASE_MERGE: u8 = CapturePhase::Merge.code();
+    const PHASE_EVERETT: u8 = CapturePhase::EverettBisection.code();
+    const PHASE_RELAY: u8 = CapturePhase::RelayGrid.code();
+    /// After the last phase (no record carries it).
     const PHASE_DONE: u8 = 7;
 
     /// `repr(C)` with the baselines' large states last: Thumb loads reach 4 KiB from a base

@@ -38,6 +38,7 @@ use crate::util::{display, Ctx};
 use anyhow::{bail, ensure, Context, Result};
 use host_tests::reference::preisach::RelayPreisach;
 use host_tests::tracking::{self, TrackingStats};
+use magctl::board::capture_phase::CapturePhase;
 use magctl::inverse::{ControlLoop, InverseKind, LoopState};
 use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
 use object::{Object, ObjectSection};
@@ -486,14 +487,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         let _ = writeln!(
             csv,
             "{},{},{:.6},{:e},{:e},{:e},{:e},{:e},{:e},{},{},{:.1}",
-            match r.phase {
-                1 => "dynamic",
-                2 => "static",
-                3 => "naive",
-                4 => "merge",
-                5 => "everett_bisection",
-                _ => "relay_grid",
-            },
+            CapturePhase::from_code(r.phase).map_or("unknown", CapturePhase::name),
             r.index,
             r.index as f64 / rate,
             r.current_a,

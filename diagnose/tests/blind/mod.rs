@@ -3,9 +3,9 @@
 //! public API exactly as `maglab diagnose` does, and tabulate.
 #![allow(dead_code)]
 
+use maglab_dataset::data::Measurement;
+use maglab_dataset::dataset_info::{DatasetInfo, FileInfo};
 use maglab_diagnose::diagnosis::{diagnose, DiagnoseOptions, Diagnosis};
-use maglab_identify::data::Measurement;
-use maglab_identify::dataset_info::{DatasetInfo, FileInfo};
 use maglab_plant::suite::{self, Case, Kind};
 
 /// One diagnosed case.

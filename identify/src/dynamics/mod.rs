@@ -26,16 +26,17 @@
 pub mod phase_lag;
 pub mod record;
 pub mod simulate;
+pub mod waveform;
 
 use crate::experiments::DynamicExperiment;
-use crate::spectrum::{harmonic_fit, wrap_lag_rad, HarmonicFit};
 use actuator_params::ActuatorParams;
+use maglab_signal::spectrum::{harmonic_fit, wrap_lag_rad, HarmonicFit};
 use simulate::{core_measure, simulate as run, DynamicParams, SimulationOptions};
 use std::fmt;
 use std::ops::Range;
 
 pub use phase_lag::{Candidate, PhaseLagResult, F0_SCAN_RATIO};
-pub use simulate::{CurrentBetweenSamples, Start};
+pub use simulate::DYNAMIC_STARTS;
 
 /// Resistivity of Terfenol-D, Ω·m (see the module docs).
 pub const TERFENOL_RESISTIVITY_OHM_M: f64 = 6e-7;
@@ -65,7 +66,7 @@ pub struct DynamicOptions {
     /// Settling: at least this many mechanical time constants `1 / (ξ ω0)` are skipped.
     pub settle_time_constants: f64,
     /// Harmonics fitted with the fundamental (DC bias and `M²` distortion, see
-    /// [`crate::spectrum`]).
+    /// [`maglab_signal::spectrum`]).
     pub harmonics: usize,
     /// Resistivity for `R̄`, Ω·m.
     pub resistivity_ohm_m: f64,
@@ -268,7 +269,7 @@ pub struct RefinedFit {
     pub rms_nrmse: f64,
     /// Where the current belongs to each displacement sample, in samples after the current's
     /// own sample time, as the fit estimated it (channel skew and the current between samples):
-    /// what [`crate::actuator::IdentifyOptions::current_shift_samples`] takes.
+    /// what [`crate::masses::MassOptions::current_shift_samples`] takes.
     pub current_read_shift_samples: f64,
     /// How it was made and what it estimated, for the provenance.
     pub details: serde_json::Value,

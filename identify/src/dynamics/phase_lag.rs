@@ -34,8 +34,8 @@
 
 use super::simulate::{simulate, DynamicParams};
 use super::{DynamicError, Prepared, Progress};
-use crate::spectrum::{harmonic_fit, wrap_lag_rad};
 use magctl::preisach::PreisachMeasure;
+use maglab_signal::spectrum::{harmonic_fit, wrap_lag_rad};
 use rayon::prelude::*;
 
 /// One candidate of the grid.

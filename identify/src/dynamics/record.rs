@@ -7,13 +7,6 @@ use crate::experiments::{Rule, SplitDataset};
 use actuator_params::{ActuatorParams, Provenance};
 use serde_json::json;
 
-/// The parameter-file fields of `R_eddy`, `ξ`, `f0`, in that order.
-pub const DYNAMIC_FIELDS: [&str; 3] = [
-    "actuator.eddy_resistance_ohm",
-    "actuator.damping_ratio",
-    "actuator.resonance_hz",
-];
-
 /// Sets `R_eddy`, `ξ`, `f0` of `params` from `fit` and records how in `params.provenance`
 /// (`dynamics`, `dataset_classification`; the three fields move from `not_identified` to
 /// `identified`, and `not_identified` is removed when it becomes empty).
@@ -29,9 +22,9 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
         .map(String::from)
         .collect();
     let written: &[&str] = if fit.refined.is_some() {
-        &DYNAMIC_FIELDS
+        &Provenance::DYNAMIC_FIELDS
     } else {
-        &DYNAMIC_FIELDS[..2]
+        &Provenance::DYNAMIC_FIELDS[..2]
     };
     for f in written {
         if !identified.iter().any(|v| v == f) {

@@ -2,7 +2,7 @@
 //! (`magctl::model::DynamicModel`), driven by the *measured* current samples, on the measurement's
 //! time base.
 //!
-//! * **Initial conditions** ([`Start`]): the experiment starts at rest, in equilibrium under its
+//! * **Initial conditions** ([`DYNAMIC_STARTS`]): the experiment starts at rest, in equilibrium under its
 //!   first current, reached from the given Preisach memory (default: AC-demagnetized, the core's
 //!   documented demagnetized state — what `maglab rig` does). The paper insists the simulated
 //!   initial state be the experiment's: the memory left outside the periodic minor loop sets a
@@ -21,95 +21,28 @@
 //! Sample `k` of the output is the state at `t_k`, before the current of sample `k` acts (the
 //! measurement's alignment: `y[0]` is the initial equilibrium).
 
-use crate::data::Measurement;
 use actuator_params::ActuatorParams;
 use magctl::model::DynamicModel;
 use magctl::params::{Actuator, PreisachGrid};
 use magctl::preisach::{PreisachMeasure, PreisachState, DEFAULT_CAPACITY};
+use maglab_dataset::data::Measurement;
+use maglab_dataset::{CurrentBetweenSamples, StartState};
 
-/// Initial Preisach memory of every dynamic experiment.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Start {
-    /// AC-demagnetized (the core's `demagnetized()`).
-    Demagnetized,
-    /// Every hysteron at -1.
-    NegativeSaturation,
-    /// Every hysteron at +1.
-    PositiveSaturation,
-}
+/// The start states the phase-lag scheme's simulation reproduces: at rest under the first
+/// current, reached from demagnetization or saturation.
+pub const DYNAMIC_STARTS: [StartState; 3] = [
+    StartState::Demagnetized,
+    StartState::NegativeSaturation,
+    StartState::PositiveSaturation,
+];
 
-impl Start {
-    /// CLI names.
-    pub const NAMES: [(&'static str, Start); 3] = [
-        ("demagnetized", Start::Demagnetized),
-        ("negative-saturation", Start::NegativeSaturation),
-        ("positive-saturation", Start::PositiveSaturation),
-    ];
-
-    /// Parses a CLI name.
-    pub fn parse(text: &str) -> Result<Self, String> {
-        Self::NAMES
-            .iter()
-            .find(|(n, _)| *n == text)
-            .map(|(_, s)| *s)
-            .ok_or_else(|| {
-                format!(
-                    "unknown start state `{text}`; expected one of {}",
-                    Self::NAMES.map(|(n, _)| n).join(", ")
-                )
-            })
-    }
-
-    /// The CLI name.
-    pub fn name(self) -> &'static str {
-        Self::NAMES
-            .iter()
-            .find(|(_, s)| *s == self)
-            .map_or("?", |(n, _)| n)
-    }
-
-    fn state(self, measure: &PreisachMeasure) -> PreisachState<DEFAULT_CAPACITY> {
-        match self {
-            Start::Demagnetized => measure.demagnetized(),
-            Start::NegativeSaturation => measure.negative_saturation(),
-            Start::PositiveSaturation => measure.positive_saturation(),
-        }
-    }
-}
-
-/// What the recorded current means between samples.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CurrentBetweenSamples {
-    /// Held over each sample interval (zero-order hold).
-    Hold,
-    /// Linear between samples (a sampled continuous current).
-    Linear,
-}
-
-impl CurrentBetweenSamples {
-    /// CLI names.
-    pub const NAMES: [(&'static str, CurrentBetweenSamples); 2] = [
-        ("hold", CurrentBetweenSamples::Hold),
-        ("linear", CurrentBetweenSamples::Linear),
-    ];
-
-    /// Parses a CLI name.
-    pub fn parse(text: &str) -> Result<Self, String> {
-        Self::NAMES
-            .iter()
-            .find(|(n, _)| *n == text)
-            .map(|(_, s)| *s)
-            .ok_or_else(|| {
-                format!("unknown current interpolation `{text}`; expected hold or linear")
-            })
-    }
-
-    /// The CLI name.
-    pub fn name(self) -> &'static str {
-        match self {
-            CurrentBetweenSamples::Hold => "hold",
-            CurrentBetweenSamples::Linear => "linear",
-        }
+/// The Preisach memory `start` leaves before the move to the first current (one of
+/// [`DYNAMIC_STARTS`]; any other starts demagnetized).
+fn start_memory(start: StartState, measure: &PreisachMeasure) -> PreisachState<DEFAULT_CAPACITY> {
+    match start {
+        StartState::NegativeSaturation => measure.negative_saturation(),
+        StartState::PositiveSaturation => measure.positive_saturation(),
+        _ => measure.demagnetized(),
     }
 }
 
@@ -156,7 +89,7 @@ pub fn core_measure(params: &ActuatorParams) -> Result<PreisachMeasure, super::D
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimulationOptions {
     /// Initial memory.
-    pub start: Start,
+    pub start: StartState,
     /// Current between samples.
     pub current: CurrentBetweenSamples,
     /// Longest model step, s (see the module docs).
@@ -166,7 +99,7 @@ pub struct SimulationOptions {
 impl Default for SimulationOptions {
     fn default() -> Self {
         SimulationOptions {
-            start: Start::Demagnetized,
+            start: StartState::Demagnetized,
             current: CurrentBetweenSamples::Linear,
             max_substep_s: 5e-6,
         }
@@ -200,7 +133,7 @@ pub fn simulate(
     let n = substeps(measurement.step_s, options);
     let model = DynamicModel::new(measure, &actuator, (measurement.step_s / n as f64) as f32);
     let current = &measurement.current_a;
-    let mut state = model.equilibrium(options.start.state(measure), current[0] as f32);
+    let mut state = model.equilibrium(start_memory(options.start, measure), current[0] as f32);
     let mut m_a_per_m = Vec::with_capacity(current.len());
     let mut displacement_m = Vec::with_capacity(current.len());
     m_a_per_m.push(state.m_a_per_m as f64);

@@ -6,12 +6,12 @@
 //! --release -p maglab --test identified_suite -- --ignored`). The figures in `quality`'s docs:
 //!
 //! ```sh
-//! cargo run --release -p maglab-diagnose --example bound_scan -- DIR/case*
+//! cargo run --release -p maglab-identify --example bound_scan -- DIR/case*
 //! ```
 
 use actuator_params::ActuatorParams;
-use maglab_diagnose::identification::IDENTIFICATION_RANGE;
 use maglab_identify::quality::{at_search_bound, DYNAMIC_CONSTANT_NAMES};
+use maglab_model::candidates::IDENTIFICATION_RANGE;
 use std::path::Path;
 
 fn constants(p: &ActuatorParams) -> [f64; 3] {

@@ -1,5 +1,5 @@
 //! Golden-section search for the minimum of a unimodal function on an interval: the one
-//! one-dimensional minimizer of the workspace (frequency refinement here, the channel-skew
+//! one-dimensional minimizer of the workspace (the frequency refinement of [`crate::spectrum`], the channel-skew
 //! estimate of the diagnosis, the nuisance shift of the blind suite's gap).
 //!
 //! Each iteration shrinks the bracket by the golden ratio φ⁻¹ ≈ 0.618 with one new evaluation,

@@ -240,6 +240,12 @@ pub fn richer_form_name(effect: EffectName) -> String {
 /// How far the refit may move `R_eddy`, `ξ`, `f0` from the file's values: factors (module docs).
 pub const REFIT_RANGE: [f64; 3] = [1.25, 1.25, 1.06];
 
+/// How far an identification may move `R_eddy`, `ξ`, `f0` from its start: factors. The
+/// identification is where the constants are found, not checked; the diagnosis refits
+/// constants a file lists as identified within the same range (what the identification could
+/// have absorbed into them, it may take back out).
+pub const IDENTIFICATION_RANGE: [f64; 3] = [10.0, 5.0, 2.0];
+
 /// How many parameters every candidate shares, first in its value vector:
 /// [`common_parameters`] (`R_eddy`, `ξ`, `f0`, skew); an effect's own parameters follow.
 pub const COMMON_PARAMETER_COUNT: usize = 4;

@@ -32,7 +32,7 @@
 //!    (`sensor_dynamics`: second-order low-pass, then a delay), and the reading at
 //!    `t_k + skew − delay` by cubic Hermite interpolation of the sensor's output and its rate.
 //!
-//! **Start.** [`ModelStart`] mirrors what a bench documents (`maglab_identify::dataset_info`): the
+//! **Start.** [`ModelStart`] is what a bench documents (`maglab_dataset::start`): the
 //! core's AC-demagnetized memory at 0 A (switched on at `t = 0`, or brought slowly to the first
 //! command), saturation, or the memory the previous experiment of the same simulated chain left
 //! (the caller runs the chain in order with the same parameters).
@@ -41,6 +41,7 @@
 //! sample `k` acts on a held command (the recording convention of `maglab rig`).
 
 use magctl::preisach::{PreisachMeasure, PreisachState};
+use maglab_dataset::{CurrentBetweenSamples, StartState};
 use std::borrow::Cow;
 use std::f64::consts::PI;
 
@@ -105,44 +106,25 @@ impl Nominal {
     }
 }
 
-/// What the current does between its samples (serialized by its [`Interpolation::name`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Interpolation {
-    /// Held (a DAC).
-    Hold,
-    /// Linear to the next sample.
-    Linear,
-}
-
-impl Interpolation {
-    /// Interface name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Interpolation::Hold => "hold",
-            Interpolation::Linear => "linear",
-        }
-    }
-}
-
 /// How a simulated experiment starts.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ModelStart {
-    /// AC-demagnetized at 0 A, at rest; the command switches on at `t = 0`.
-    SwitchOnDemagnetized,
-    /// AC-demagnetized at 0 A, then slowly to the first command, at rest.
-    Demagnetized,
-    /// Negative saturation, then slowly to the first command.
-    NegativeSaturation,
-    /// Positive saturation, then slowly to the first command.
-    PositiveSaturation,
-    /// Where the previous experiment of the same simulated chain ended (no reset between
-    /// experiments): its memory, then the first command applied at `t = 0`.
-    Previous,
+    /// A start state a bench documents ([`StartState::BENCH`]); `previous` is where the
+    /// previous experiment of the same simulated chain ended (no reset between experiments):
+    /// its memory, then the first command applied at `t = 0`. The model simulates the bench
+    /// states; any other starts demagnetized.
+    State(StartState),
     /// Where a record outside the simulated set left the memory (computed once, before any fit:
     /// a quasi-static reversal sweep recorded right before the first experiment of a chain),
     /// then the first command applied at `t = 0`.
     After(std::sync::Arc<Memory>),
+}
+
+impl ModelStart {
+    /// Continues the previous experiment of the simulated chain.
+    pub fn is_previous(&self) -> bool {
+        *self == ModelStart::State(StartState::Previous)
+    }
 }
 
 /// Parameters of the electromagnetic stage.
@@ -256,9 +238,9 @@ fn start_memory(
     previous: Option<&Memory>,
 ) -> Memory {
     match (start, previous) {
-        (ModelStart::NegativeSaturation, _) => measure.negative_saturation(),
-        (ModelStart::PositiveSaturation, _) => measure.positive_saturation(),
-        (ModelStart::Previous, Some(m)) => m.clone(),
+        (ModelStart::State(StartState::NegativeSaturation), _) => measure.negative_saturation(),
+        (ModelStart::State(StartState::PositiveSaturation), _) => measure.positive_saturation(),
+        (ModelStart::State(StartState::Previous), Some(m)) => m.clone(),
         (ModelStart::After(m), _) => (**m).clone(),
         _ => measure.demagnetized(),
     }
@@ -303,7 +285,7 @@ fn electro_once(
     e: &Electro,
     currents_a: &[f64],
     step_s: f64,
-    interp: Interpolation,
+    interp: CurrentBetweenSamples,
     start: &ModelStart,
     previous: Option<&Memory>,
     s: usize,
@@ -328,7 +310,7 @@ fn electro_steps<const SECOND_PATH: bool>(
     e: &Electro,
     currents_a: &[f64],
     step_s: f64,
-    interp: Interpolation,
+    interp: CurrentBetweenSamples,
     start: &ModelStart,
     previous: Option<&Memory>,
     s: usize,
@@ -360,7 +342,7 @@ fn electro_steps<const SECOND_PATH: bool>(
     let mut memory = start_memory(measure, start, previous);
     let first = currents_a[0];
     let (i_start, h0) = match start {
-        ModelStart::SwitchOnDemagnetized => (0.0, 0.0),
+        ModelStart::State(StartState::SwitchOnDemagnetized) => (0.0, 0.0),
         _ => (first, c0 * first),
     };
     let g0 = match measure.apply(&mut memory, h0 as f32) {
@@ -379,8 +361,8 @@ fn electro_steps<const SECOND_PATH: bool>(
     for k in 0..n {
         let c_a = currents_a[k];
         let c_b = match interp {
-            Interpolation::Hold => c_a,
-            Interpolation::Linear => currents_a[(k + 1).min(n - 1)],
+            CurrentBetweenSamples::Hold => c_a,
+            CurrentBetweenSamples::Linear => currents_a[(k + 1).min(n - 1)],
         };
         for j in 0..s {
             let fa = j as f64 / s as f64;
@@ -440,7 +422,7 @@ pub fn run_electro(
     e: &Electro,
     currents_a: &[f64],
     step_s: f64,
-    interp: Interpolation,
+    interp: CurrentBetweenSamples,
     start: &ModelStart,
     previous: Option<&Memory>,
     substeps: usize,
@@ -482,7 +464,7 @@ pub fn run_electro_single(
     e: &Electro,
     currents_a: &[f64],
     step_s: f64,
-    interp: Interpolation,
+    interp: CurrentBetweenSamples,
     start: &ModelStart,
     previous: Option<&Memory>,
     substeps: usize,
@@ -915,7 +897,7 @@ pub fn simulate(
     mech: &Mech,
     currents_a: &[f64],
     step_s: f64,
-    interp: Interpolation,
+    interp: CurrentBetweenSamples,
     start: &ModelStart,
     substeps: usize,
 ) -> Vec<f64> {

@@ -1,6 +1,6 @@
-//! Frequency and phase of periodic signals: the excitation frequency of a measurement (dataset
-//! convention, [`crate::experiments`]) and the fundamental phasors the phase-lag scheme of
-//! Section 4 compares.
+//! Frequency and phase of periodic signals: the excitation frequency of a measurement (the
+//! identification's dataset convention), the fundamental phasors the phase-lag scheme of
+//! Section 4 compares, and the spectra of the diagnosis.
 //!
 //! * [`dominant_tone`]: the largest peak of the Hann-windowed spectrum (`rustfft`) of the
 //!   mean-removed signal, interpolated between bins (Gaussian/log-parabolic interpolation: exact
@@ -17,6 +17,9 @@
 //!   the DC level and the harmonics jointly also removes the leakage that a window a fraction of a
 //!   sample off whole periods would let the large DC bias and the strong second harmonic of
 //!   `y ∝ M²` put into the fundamental.
+//! * [`amplitude_spectrum`], [`dominant_frequency_hz`]: the rectangular-window spectrum and its
+//!   largest bin (log-parabolic interpolation) by which the diagnosis groups and splits its
+//!   experiments; [`fourier_coefficient`] over [`whole_periods`] for its per-band breakdown.
 //!
 //! Phase convention: the fundamental is `A sin(ωt + φ)` with `t` the sample time; a lag is
 //! `φ_input - φ_output`.
@@ -194,4 +197,97 @@ pub fn wrap_lag_rad(theta: f64) -> f64 {
         t -= 2.0 * PI;
     }
     t
+}
+
+/// Dominant frequency of `x` (mean removed), Hz: the largest FFT bin above DC with parabolic
+/// interpolation of the log-magnitude around it. `None` for a constant record.
+pub fn dominant_frequency_hz(x: &[f64], rate_hz: f64) -> Option<f64> {
+    let n = x.len();
+    if n < 8 {
+        return None;
+    }
+    let spectrum = amplitude_spectrum(x, rate_hz, false);
+    let (k, &(_, peak)) = spectrum
+        .iter()
+        .enumerate()
+        .skip(1)
+        .max_by(|a, b| a.1 .1.total_cmp(&b.1 .1))?;
+    if peak <= 0.0 {
+        return None;
+    }
+    let df = rate_hz / n as f64;
+    if k + 1 < spectrum.len() && k >= 2 {
+        let (a, b, c) = (
+            spectrum[k - 1].1.max(1e-300).ln(),
+            peak.ln(),
+            spectrum[k + 1].1.max(1e-300).ln(),
+        );
+        let denom = a - 2.0 * b + c;
+        let shift = if denom.abs() > 0.0 {
+            0.5 * (a - c) / denom
+        } else {
+            0.0
+        };
+        return Some((k as f64 + shift.clamp(-0.5, 0.5)) * df);
+    }
+    Some(k as f64 * df)
+}
+
+/// One-sided amplitude spectrum `(frequency Hz, amplitude)` of `x` with its mean removed, Hann
+/// window when `window`, scaled so a sinusoid of amplitude `A` on a bin shows `A`.
+pub fn amplitude_spectrum(x: &[f64], rate_hz: f64, window: bool) -> Vec<(f64, f64)> {
+    let n = x.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let w: Vec<f64> = (0..n)
+        .map(|k| {
+            if window {
+                0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let wsum: f64 = w.iter().sum();
+    let mut buf: Vec<Complex<f64>> = x
+        .iter()
+        .zip(&w)
+        .map(|(v, w)| Complex::new((v - mean) * w, 0.0))
+        .collect();
+    FftPlanner::new().plan_fft_forward(n).process(&mut buf);
+    (0..=n / 2)
+        .map(|k| (k as f64 * rate_hz / n as f64, 2.0 * buf[k].norm() / wsum))
+        .collect()
+}
+
+/// Fourier coefficient of `x` at `freq_hz` over the samples `range` (complex amplitude: a
+/// sinusoid `A sin(ωt + φ)` gives `A e^{j(φ - π/2)}`).
+pub fn fourier_coefficient(
+    x: &[f64],
+    range: std::ops::Range<usize>,
+    freq_hz: f64,
+    rate_hz: f64,
+) -> Complex<f64> {
+    let n = range.len().max(1) as f64;
+    let mut acc = Complex::new(0.0, 0.0);
+    for k in range {
+        let ph = 2.0 * PI * freq_hz * k as f64 / rate_hz;
+        acc += Complex::new(ph.cos(), -ph.sin()) * x[k];
+    }
+    acc * (2.0 / n)
+}
+
+/// The last whole number of periods of `freq_hz` in `start..n` (at least one period), so Fourier
+/// coefficients are not smeared by a partial period.
+pub fn whole_periods(start: usize, n: usize, freq_hz: f64, rate_hz: f64) -> std::ops::Range<usize> {
+    let period = rate_hz / freq_hz;
+    let available = (n - start) as f64;
+    let periods = (available / period).floor();
+    if periods < 1.0 {
+        return start..n;
+    }
+    let len = (periods * period).round() as usize;
+    (n - len.min(n - start))..n
 }

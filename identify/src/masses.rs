@@ -1,6 +1,6 @@
 //! `maglab identify`: a dataset of quasi-static measurements → the full parameter file.
 //!
-//! Steps: read the dataset ([`crate::data`]); `H = c0 I`; `M` from the displacement through the
+//! Steps: read the dataset (`maglab_dataset::data`); `H = c0 I`; `M` from the displacement through the
 //! static model (6) ([`crate::magnetization`], sign convention as chosen); fit the 325 masses on
 //! the grid of the base file ([`crate::fit`]) with the base masses as prior; write the base file
 //! with the masses replaced and a provenance that records the dataset, the date, the options, the
@@ -15,25 +15,25 @@
 //! the paper and are copied.
 
 use crate::cell_of_index;
-use crate::data::Dataset;
 use crate::design::{Experiment, Grid};
 use crate::fit::{fit, FitError, FitOptions, FitResult};
 use crate::magnetization::{magnetization, Branch, StaticModel};
-use crate::memory::InitialState;
 use crate::model::{nrmse, PreisachModel, FORMAT};
 use actuator_params::{ActuatorParams, Provenance};
+use maglab_dataset::data::Dataset;
+use maglab_dataset::StartState;
 use serde_json::{json, Map, Value};
 
 /// Options of `identify`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct IdentifyOptions {
+pub struct MassOptions {
     /// Sign convention for M (`None`: per file, [`auto_branch`]).
     pub branch: Option<Branch>,
     /// Initial memory of every file (`None`: per file, as `dataset.json` documents it, else
     /// [`auto_initial`]).
-    pub initial: Option<InitialState>,
+    pub initial: Option<StartState>,
     /// The dataset's `dataset.json`, when it has one.
-    pub documented: Option<crate::dataset_info::DatasetInfo>,
+    pub documented: Option<maglab_dataset::dataset_info::DatasetInfo>,
     /// Zero band of the monotone sign rule, as a fraction of the full stroke `l_m λ_s`.
     pub zero_band_fraction: f64,
     /// The fit.
@@ -100,7 +100,7 @@ pub struct FileReport {
 
 /// The result of `identify`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Identification {
+pub struct MassIdentification {
     /// The full parameter file (validated).
     pub params: ActuatorParams,
     /// The fit.
@@ -316,15 +316,15 @@ pub fn auto_branch(current_a: &[f64]) -> Branch {
 /// an end of the grid saturates the memory itself; a closed record (first and last samples
 /// within 2 % of the field range, at least one reversal) is a period of a periodic loop; any
 /// other starts from a demagnetization at zero current.
-pub fn auto_initial(h: &[f64], grid: &Grid) -> InitialState {
+pub fn auto_initial(h: &[f64], grid: &Grid) -> StartState {
     let (Some(&first), Some(&last)) = (h.first(), h.last()) else {
-        return InitialState::DemagnetizedAtZero;
+        return StartState::Demagnetized;
     };
     if first <= grid.h_min {
-        return InitialState::NegativeSaturation;
+        return StartState::NegativeSaturation;
     }
     if first >= grid.h_max {
-        return InitialState::PositiveSaturation;
+        return StartState::PositiveSaturation;
     }
     let (lo, hi) = h
         .iter()
@@ -333,31 +333,30 @@ pub fn auto_initial(h: &[f64], grid: &Grid) -> InitialState {
         });
     let reversal = h.windows(3).any(|w| (w[1] - w[0]) * (w[2] - w[1]) < 0.0);
     if reversal && (first - last).abs() <= 0.02 * (hi - lo) {
-        InitialState::Periodic
+        StartState::Periodic
     } else {
-        InitialState::DemagnetizedAtZero
+        StartState::Demagnetized
     }
 }
 
-/// The Preisach initial state a documented bench start means (`previous` has none of its own:
-/// `None`, the file's start is then estimated).
-pub fn documented_initial(start: crate::dataset_info::StartState) -> Option<InitialState> {
-    use crate::dataset_info::StartState as S;
+/// The Preisach memory a documented bench start leaves (`switch-on-demagnetized` is
+/// `demagnetized` for the memory); `previous` has none of its own: `None`, the file's start is
+/// then estimated.
+pub fn documented_initial(start: StartState) -> Option<StartState> {
     match start {
-        S::SwitchOnDemagnetized | S::Demagnetized => Some(InitialState::DemagnetizedAtZero),
-        S::NegativeSaturation => Some(InitialState::NegativeSaturation),
-        S::PositiveSaturation => Some(InitialState::PositiveSaturation),
-        S::Previous => None,
+        StartState::SwitchOnDemagnetized => Some(StartState::Demagnetized),
+        StartState::Previous => None,
+        other => Some(other),
     }
 }
 
 /// Identifies the Preisach masses from `dataset` on the grid of `base` (see the module docs).
-pub fn identify(
+pub fn identify_masses(
     dataset: &Dataset,
     base: &ActuatorParams,
     base_name: &str,
-    options: &IdentifyOptions,
-) -> Result<Identification, FitError> {
+    options: &MassOptions,
+) -> Result<MassIdentification, FitError> {
     let a = &base.actuator;
     let model = StaticModel {
         rod_length_m: a.rod_length_m,
@@ -411,8 +410,8 @@ pub fn identify(
         };
         let branch = options.branch.unwrap_or_else(|| auto_branch(&current_a));
         let initial_sign: i8 = match initial {
-            InitialState::NegativeSaturation => -1,
-            InitialState::PositiveSaturation => 1,
+            StartState::NegativeSaturation => -1,
+            StartState::PositiveSaturation => 1,
             _ => 0,
         };
         let conv = magnetization(
@@ -505,7 +504,7 @@ pub fn identify(
         initial_state: initials
             .first()
             .copied()
-            .unwrap_or(InitialState::NegativeSaturation),
+            .unwrap_or(StartState::NegativeSaturation),
         provenance: Value::Null,
     };
     let mut files = Vec::new();
@@ -554,7 +553,7 @@ pub fn identify(
     params
         .validate("identified parameters")
         .map_err(|e| FitError(format!("the identified parameters do not validate: {e}")))?;
-    Ok(Identification {
+    Ok(MassIdentification {
         params,
         fit: result,
         files,
@@ -565,7 +564,7 @@ fn provenance(
     dataset: &Dataset,
     base: &ActuatorParams,
     base_name: &str,
-    options: &IdentifyOptions,
+    options: &MassOptions,
     result: &FitResult,
     files: &[FileReport],
     choices: &[Value],
@@ -617,7 +616,7 @@ fn provenance(
     d.insert(
         "not_identified".into(),
         json!({
-            "fields": crate::dynamics::record::DYNAMIC_FIELDS,
+            "fields": actuator_params::Provenance::DYNAMIC_FIELDS,
             "values": {
                 "eddy_resistance_ohm": base.actuator.eddy_resistance_ohm,
                 "damping_ratio": base.actuator.damping_ratio,

@@ -2,7 +2,8 @@
 //! `maglab identify` writes into the parameter file.
 //!
 //! It is the diagnosis' refitted nominal model (the same model, the same nuisance estimate, the
-//! same Levenberg-Marquardt fit — [`crate::diagnosis`] steps 2 and 6) with three differences:
+//! same Levenberg-Marquardt fit: `maglab-model`, as `maglab diagnose` steps 2 and 6 fit it) with
+//! three differences:
 //! every dynamic experiment is fitted (nothing is held out), the constants may move far from
 //! their starting values ([`IDENTIFICATION_RANGE`]: identification is where they are found, not
 //! checked), and the start values come from the caller (the paper's phase-lag scheme).
@@ -10,20 +11,20 @@
 //! diagnosis' refit would give on the same data: an identification error is never taken for an
 //! effect.
 
-use crate::candidates::Candidate;
-use crate::diagnosis::{
-    describe, estimate_nuisances, experiment_data, lead_in_memory, nominal_for_data, offset_of,
-    pooled_rms, systematic, NuisanceEstimate, PlanFitter, QUASI_STATIC_BELOW_HZ,
+use maglab_dataset::data::Measurement;
+use maglab_dataset::dataset_info::DatasetInfo;
+use maglab_dataset::CurrentBetweenSamples;
+use maglab_model::candidates::{Candidate, IDENTIFICATION_RANGE};
+use maglab_model::experiments::{
+    describe, experiment_data, nominal_for_data, QUASI_STATIC_BELOW_HZ,
 };
-use crate::fit::{FitSettings, ModelSetup};
-use crate::model::{Electro, Interpolation, Mech};
-use crate::signal;
-use maglab_identify::data::Measurement;
-use maglab_identify::dataset_info::DatasetInfo;
+use maglab_model::fit::{FitSettings, ModelSetup};
+use maglab_model::model::{Electro, Mech};
+use maglab_model::nuisance::{estimate_nuisances, lead_in_memory, NuisanceEstimate};
+use maglab_model::plan_fit::PlanFitter;
+use maglab_model::residual::{offset_of, pooled_rms, systematic};
+use maglab_signal::noise;
 use serde::Serialize;
-
-/// How far the identification may move `R_eddy`, `ξ`, `f0` from its start: factors.
-pub const IDENTIFICATION_RANGE: [f64; 3] = [10.0, 5.0, 2.0];
 
 /// The identified constants and what was estimated with them.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -35,7 +36,7 @@ pub struct DynamicIdentification {
     /// `f0`, Hz.
     pub resonance_hz: f64,
     /// What the current does between its samples.
-    pub current_between_samples: Interpolation,
+    pub current_between_samples: CurrentBetweenSamples,
     /// Channel skew, samples.
     pub channel_skew_samples: f64,
     /// Sensor offset, m.
@@ -69,11 +70,7 @@ impl DynamicIdentification {
     /// own sample time: the channel skew, less half a sample when the current is held (a held
     /// sample acts, on average, half a sample after its time stamp, as a linear one does at it).
     pub fn current_read_shift_samples(&self) -> f64 {
-        self.channel_skew_samples
-            - match self.current_between_samples {
-                Interpolation::Hold => 0.5,
-                Interpolation::Linear => 0.0,
-            }
+        self.channel_skew_samples - self.current_between_samples.mean_delay_samples()
     }
 }
 
@@ -259,7 +256,7 @@ pub fn identify_dynamics(
         nominal: &nominal,
         measure: &measure,
         step_s: 1.0 / rate_hz,
-        interpolation: Interpolation::Linear,
+        interpolation: CurrentBetweenSamples::Linear,
         substeps,
         single_run: false,
     };
@@ -360,7 +357,7 @@ pub fn identify_dynamics(
         .iter()
         .map(|(p, y, s)| {
             let r: Vec<f64> = (*s..p.len()).map(|i| y[i] - p[i] - offset).collect();
-            signal::white_noise_sigma(&r)
+            noise::white_noise_sigma(&r)
         })
         .collect();
     sigmas.sort_by(f64::total_cmp);

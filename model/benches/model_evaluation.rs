@@ -1,4 +1,4 @@
-//! Cost of one evaluation of the diagnosis's model (`maglab_diagnose::model::simulate`: the
+//! Cost of one evaluation of the diagnosis's model (`maglab_model::model::simulate`: the
 //! electromagnetic stage twice for Richardson's extrapolation, the rod and load, the sensor's
 //! reading), the unit every candidate fit repeats thousands of times.
 //!
@@ -9,10 +9,11 @@
 //! rod step by step (its stiffness depends on the state); every other form steps the rod and
 //! load as a precomputed linear map.
 //!
-//! Run: `cargo bench -p maglab-diagnose --bench model_evaluation`.
+//! Run: `cargo bench -p maglab-model --bench model_evaluation`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use maglab_diagnose::model::{simulate, Electro, Interpolation, Mech, ModelStart, Nominal};
+use maglab_dataset::{CurrentBetweenSamples, StartState};
+use maglab_model::model::{simulate, Electro, Mech, ModelStart, Nominal};
 use std::f64::consts::PI;
 use std::hint::black_box;
 
@@ -94,8 +95,8 @@ fn bench(c: &mut Criterion) {
                     black_box(mech),
                     black_box(&currents_a),
                     STEP_S,
-                    Interpolation::Linear,
-                    &ModelStart::Demagnetized,
+                    CurrentBetweenSamples::Linear,
+                    &ModelStart::State(StartState::Demagnetized),
                     1,
                 )
             })

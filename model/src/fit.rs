@@ -40,10 +40,11 @@ use crate::candidates::{self, Candidate, ParamSpec, Stage, COMMON_PARAMETER_COUN
 use crate::effects::EffectName;
 use crate::model::{
     chained_temperature, observe, run_electro, run_electro_single, run_mech, track_mech, Electro,
-    ElectroRun, Interpolation, Mech, MechTrack, ModelStart, Nominal,
+    ElectroRun, Mech, MechTrack, ModelStart, Nominal,
 };
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use magctl::preisach::PreisachMeasure;
+use maglab_dataset::CurrentBetweenSamples;
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -75,7 +76,7 @@ pub struct ModelSetup<'a> {
     /// Sampling step, s.
     pub step_s: f64,
     /// The current between samples.
-    pub interpolation: Interpolation,
+    pub interpolation: CurrentBetweenSamples,
     /// Electromagnetic substeps per sample.
     pub substeps: usize,
     /// One electromagnetic run with `substeps` instead of the Richardson pair
@@ -124,7 +125,7 @@ impl ModelSetup<'_> {
         which: &[usize],
         lens: &[usize],
     ) -> Vec<ElectroRun> {
-        let chained = data.iter().any(|x| x.start == ModelStart::Previous);
+        let chained = data.iter().any(|x| x.start.is_previous());
         if !chained {
             return which
                 .par_iter()
@@ -137,7 +138,7 @@ impl ModelSetup<'_> {
         for &k in which {
             let mut j = k;
             needed[j] = true;
-            while j > 0 && data[j].start == ModelStart::Previous {
+            while j > 0 && data[j].start.is_previous() {
                 j -= 1;
                 needed[j] = true;
             }

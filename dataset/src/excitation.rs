@@ -17,7 +17,7 @@
 //! `sweep_rate_hz`; every segment takes a whole number of samples so that each reversal point is a
 //! sample (the sampled input reverses exactly on the grid line).
 
-use crate::LEVELS;
+use actuator_params::PREISACH_LEVELS as LEVELS;
 
 /// Options of the excitation.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,0 +1,470 @@
+//! `maglab diagnose`: where the measured data and the nominal model disagree, which unmodelled
+//! effect explains it, and how far the gap shrinks once that effect is added.
+//!
+//! # Steps
+//!
+//! Each step has its module: [`recording`] (steps 1–5, with [`split`]), [`singles`] (6–7),
+//! [`pairs`] (8), [`verdict`]; [`scoring`] scores a fit, [`rules`] holds every tuned constant,
+//! [`report`] what `diagnosis.json` holds.
+//!
+//! 1. **Experiments.** Each record's fundamental (the dominant frequency of its current),
+//!    amplitude and bias. Records whose fundamental is below [`maglab_model::experiments::QUASI_STATIC_BELOW_HZ`] (reversal
+//!    sweeps, slow loops) are *quasi-static*: they enter the "where" breakdown only. The first
+//!    `max(one period, 2 %)` of each record (at most 25 %) is not scored: it holds the start-up
+//!    transient.
+//! 2. **Nuisances** (estimated, never asked for; the report says what was estimated), with the
+//!    parameter file's model:
+//!    * the start state of each experiment: as `dataset.json` documents it, else the one of
+//!      `switch-on-demagnetized`, `demagnetized`, `negative-saturation`, `positive-saturation`,
+//!      `previous` that fits it best (the memory left outside a periodic loop sets a constant
+//!      offset of `M`, so a wrong start is a systematic error); an experiment that continues a
+//!      quasi-static record (the reversal sweep in front of the sines) starts from the memory
+//!      that record leaves, simulated once (`lead_in_memory`), not in every fit;
+//!    * the current between samples (held or linear: half a sample of delay apart);
+//!    * the sub-sample skew of the displacement channel against the current channel (within
+//!      ±1 sample; golden-section search);
+//!    * the sensor offset (one per dataset, least squares in closed form).
+//! 3. **Noise level.** σ is the white-noise level of the residual above 0.3·f_s
+//!    ([`maglab_signal::noise::white_noise_sigma`]), median over experiments. The *systematic gap* of a
+//!    residual with RMS `e` is `g = √max(e² − σ², 0)`.
+//! 4. **Where** ([`crate::breakdown`]): the residual of the parameter file's model (with the
+//!    nuisances) per experiment and per frequency band, each band's disagreement measured against
+//!    max(2σ, 1 % of the motion).
+//! 5. **Split.** Experiments are grouped by fundamental (within 5 %) and amplitude (within 10 %).
+//!    Held out: the highest frequency group (outside the training span in frequency) and, with
+//!    three or more amplitude groups, the highest amplitude group (outside it in amplitude); with
+//!    two amplitude groups, the higher one at every other frequency (so that training still sees
+//!    how the response depends on amplitude); with one frequency group, every other amplitude
+//!    group, else every other experiment.
+//! 6. **Candidates** ([`maglab_model::candidates`], [`maglab_model::fit`]). The nominal model with its dynamic
+//!    constants (`R_eddy`, `ξ`, `f0`) and the skew refitted on the training experiments (within
+//!    [`ConstantsRange`]: narrow for a file's constants, wide for those `maglab identify` fitted
+//!    from data, which may have absorbed an effect), and the
+//!    same plus each effect of the library, fitted by Levenberg-Marquardt from a small grid of
+//!    starts (the effects in parallel, rayon).
+//! 7. **Score and verdict** on the held-out experiments, against the *refitted* nominal model:
+//!    * `none` when the refitted nominal model's held-out systematic gap is below the resolution
+//!      of the gap estimate ([`rules::resolution_floor`] = max(0.35 σ, 0.05 % of the motion)) or
+//!      [`rules::MODEL_ERROR_FACTOR`] = 1.5 times the model's own integration error (measured: the
+//!      refitted nominal model against itself with twice the substeps,
+//!      [`Diagnosis::model_error_m`]; with little noise the integration error, not the noise,
+//!      limits what the data can show), or not above [`rules::none_threshold`] = max(σ, 0.2 % of the
+//!      motion) (at least that floor) and no candidate explains it;
+//!    * a candidate is **significant** when its held-out systematic gap is at most
+//!      [`rules::EXPLAINED_RATIO`] = 0.3 of the refitted nominal one (it removes ≥ 91 % of the gap's
+//!      energy) — or at most [`rules::WITHIN_NOISE_RATIO`] = 0.5 of it and below [`rules::none_threshold`]
+//!      (what is left is within the noise) — and it makes at most a
+//!      quarter of the held-out experiments worse (RMS up by more than 5 % + 0.1 σ): the
+//!      verdict is the significant candidate with the lowest held-out error, else `unexplained`
+//!      — where another significant one comes within [`rules::EQUAL_HELD_OUT`] (1 %), a tie the data do
+//!      not resolve, the one that needs fewer of the refitted constants and the skew at an end
+//!      of their band (the same rule picks among the pairs of step 8; the tie the verdict's fit
+//!      was in is recorded, [`Diagnosis::held_out_tie`]);
+//!    * candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`;
+//!      significant candidates that fit the training experiments as well as a single winner
+//!      (training RMS within [`rules::EQUAL_ON_TRAINING`]) as `equal_on_training`: between them only the
+//!      extrapolation to the held-out experiments decides;
+//!    * the other significant single candidates are listed as `also_significant` (none after
+//!      `none`): the data are consistent with them too.
+//! 8. **Second stage** (forward selection). When the winner leaves a held-out gap above max(2σ, a
+//!    tenth of the refitted nominal gap) — or when no candidate is significant alone but one
+//!    removes at least a third of the gap's energy ([`rules::PROMISING`]: two strong effects; a
+//!    candidate that pins a parameter counts, as alone it may stretch to a limit to cover both),
+//!    or three quarters of the *training* gap's energy ([`rules::PROMISING_TRAINING`]: each of two
+//!    effects may fit the training experiments alone and extrapolate only with the other) —
+//!    every pair among the [`rules::PAIR_CANDIDATES`] best single candidates and the candidates that fit
+//!    one frequency band best (up to two more: a slow and a fast effect each show in their own
+//!    bands) is refitted, and so are the best single candidate and the runner-up (the next that
+//!    pins nothing) each with every other effect of the library (forward selection: an effect
+//!    the first one masks fits badly alone, and the best single may stand in for both). The
+//!    best pair is named (the second effect as an `additional_effect`) when its held-out gap is at most
+//!    half the first effect's alone and half the refitted nominal one, it makes at most a
+//!    quarter of the held-out experiments worse, pins no parameter, and both its effects are
+//!    needed: with either switched off and the rest refitted, the gap is at least twice as large.
+//!    When the winner leaves less than that but more than [`rules::SMALL_REMAINDER_NOISE`] σ and
+//!    [`rules::SMALL_REMAINDER_SHARE`] of the refitted nominal gap, only the winner's forward selection
+//!    runs (the winner with each other effect of the library, under the same test): a weak
+//!    second effect the winner's fit mostly absorbs (an amplifier lag beside a sensor lag) leaves
+//!    a few % of the gap, below twice the noise, and the winner stays in the pair. There the
+//!    second effect must also be specific: the next pair (another effect in its place) still
+//!    leaves [`rules::SPECIFIC_NEXT_SHARE`] of the winner's remainder and the best pair at most
+//!    [`rules::SPECIFIC_SECOND_RATIO`] of what the next leaves; else the remainder is the winner's
+//!    form differing from the plant's, not a second effect, and no pair is named.
+//!    (No rule on the second effect's share of the *nominal* gap: when the first effect's fit
+//!    absorbs most of the second — thermal drift or a lag taking ΔE's amplitude dependence — the
+//!    share is small although the second effect removes 90 % of what the first leaves.)
+//!    When the best pair fails because one of its effects is not needed, the refit of the other
+//!    alone (started from the pair's optimum) replaces that effect's single fit if it fits the
+//!    training experiments better — a better optimum of the same candidate — and the verdict is
+//!    taken again from the single candidates.
+//!    When no pair is named, the pair with an effect that has a richer form
+//!    ([`maglab_model::candidates::RICHER_FORM`]: eddy currents with a second path, a load with a
+//!    second mass) that fits the training experiments best — if it fits them at least as well
+//!    as the best pair (the one best on the held-out experiments), or is that pair — is
+//!    refitted with that effect in its richer form (started from the pair's optimum and from
+//!    the effect's library starts) and named if it passes the same
+//!    test: a rod's eddy currents diffuse, and one path stretched to cover a ladder of them
+//!    may fit the training experiments and miss the top band. When that pair fails because its
+//!    other effect is not needed, the
+//!    richer effect alone (its knock-out refit, from the pair's optimum) is judged as a single
+//!    candidate is — significant against the refitted nominal model, nothing pinned — and
+//!    named in its richer form when its second term is needed; else its library form refitted
+//!    from there is taken up by the single candidates.
+//!    **One effect before two.** When a pair is named and one of its effects has a richer form
+//!    (a second eddy path or load mass), that effect alone in its richer form is fitted (from its values in
+//!    the pair and its single fit, with each library start, one group of starts per start of
+//!    the second term, each group refined). If it leaves no more of the held-out gap than the
+//!    pair (within the gap estimate's resolution [`rules::resolution_floor`]), pins nothing and makes
+//!    at most a quarter of the held-out experiments worse, it replaces the pair: named in its
+//!    richer form when its second term is needed, else its library form refitted from the
+//!    richer optimum is taken up by the single candidates (a better optimum of the same
+//!    candidate, as above): a one-mode fit of a two-mode load can stop in a local minimum, and
+//!    an eddy path then mops up the rest.
+//!
+//! **Significance** (steps 7 and 8) is a knock-out test as well: the candidate's held-out gap
+//! must also be at most [`rules::EXPLAINED_RATIO`] of what its own fit gives with its effect switched off (so the
+//! improvement is the effect's, not a better optimum of the shared constants), and no effect
+//! parameter may be pinned at a physical limit of its range ([`maglab_model::candidates::Edge`]): an
+//! explanation that needs an implausible effect is none.
+
+mod pairs;
+mod recording;
+mod refit;
+mod report;
+pub mod rules;
+mod scoring;
+mod singles;
+mod split;
+mod verdict;
+
+pub use refit::constants_range;
+pub use report::{
+    AlsoSignificant, BandError, CandidateResult, ConstantsRange, Diagnosis, DiagnosisRun,
+    HeldOutTie, Nuisance, TiedFit, Trace,
+};
+pub use rules::{
+    none_threshold, resolution_floor, CRITERION, IDENTIFIED_REFIT_RANGE, MODEL_ERROR_FACTOR,
+};
+pub use scoring::{held_out_tie_break, TieIndices};
+pub use verdict::{also_significant, effects_identified_into, equal_on_training, LAG_EFFECTS};
+
+use maglab_dataset::data::Measurement;
+use maglab_dataset::dataset_info::DatasetInfo;
+use maglab_model::experiments::experiment_data;
+use maglab_model::fit::{ExperimentData, FitSettings};
+use maglab_model::plan_fit::PlanFitter;
+use pairs::SecondStage;
+use recording::Recording;
+use rules::MAX_SUBSTEPS_FACTOR;
+use scoring::Scorer;
+use singles::{Gaps, Stage};
+
+/// Settings of the diagnosis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnoseOptions {
+    /// Electromagnetic substeps per sample (Richardson-extrapolated with twice as many).
+    pub substeps: usize,
+    /// Fit settings.
+    pub fit: FitSettings,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            substeps: 1,
+            fit: FitSettings::default(),
+        }
+    }
+}
+
+/// Runs the diagnosis on `measurements` with the nominal parameters; `documented` is the
+/// dataset's `dataset.json` when it has one.
+///
+/// When the refitted nominal model's held-out gap is above the noise-based `none` threshold but
+/// within [`MODEL_ERROR_FACTOR`] times the model's own integration error (little noise, or a low
+/// sample rate against the excitation), the model cannot tell an effect of that size from its own
+/// error: the diagnosis starts again with twice the substeps (each time, up to
+/// [`rules::MAX_SUBSTEPS_FACTOR`] times the requested ones; about twice the time per doubling) and says
+/// so in [`Diagnosis::substeps_raised`]. A gap between the noise-based floor and threshold that a
+/// candidate would explain but the model's error covers is `none`
+/// ([`Diagnosis::none_by_model_error`]), without more substeps: below that threshold the rules
+/// name an effect only on a candidate's explanation, which the model's error makes unsure.
+pub fn diagnose(
+    params: &actuator_params::ActuatorParams,
+    measurements: &[Measurement],
+    documented: Option<&DatasetInfo>,
+    options: &DiagnoseOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<DiagnosisRun, String> {
+    let requested = options.substeps.max(1);
+    let mut substeps = requested;
+    let mut raised: Vec<String> = Vec::new();
+    loop {
+        let at = DiagnoseOptions {
+            substeps,
+            ..options.clone()
+        };
+        let may_raise = substeps * 2 <= requested * MAX_SUBSTEPS_FACTOR;
+        let mut run = match diagnose_at(params, measurements, documented, &at, may_raise, progress)?
+        {
+            Attempt::Done(run) => *run,
+            Attempt::Refine {
+                gap_m,
+                model_error_m,
+            } => {
+                raised.push(format!(
+                    "at {substeps} substep(s) per sample the held-out gap ({gap_m:.3e} m) was \
+                     within {MODEL_ERROR_FACTOR} x the model's integration error \
+                     ({model_error_m:.3e} m) but not within the noise"
+                ));
+                substeps *= 2;
+                continue;
+            }
+        };
+        if !raised.is_empty() {
+            run.diagnosis.substeps_raised = Some(format!(
+                "substeps raised from {requested} to {substeps}: {}",
+                raised.join("; ")
+            ));
+        }
+        return Ok(run);
+    }
+}
+
+/// What one [`diagnose_at`] gave.
+enum Attempt {
+    /// The diagnosis.
+    Done(Box<DiagnosisRun>),
+    /// The refitted nominal model's held-out gap is above the noise-based `none` threshold but
+    /// within [`MODEL_ERROR_FACTOR`] times the model's integration error: `none` only because of
+    /// the model, whatever the candidates do; [`diagnose`] runs again with more substeps.
+    Refine { gap_m: f64, model_error_m: f64 },
+}
+
+/// [`diagnose`] with `options.substeps` as given; `may_refine`: stop at [`Attempt::Refine`]
+/// before fitting the candidates when the model's error alone decides.
+fn diagnose_at(
+    params: &actuator_params::ActuatorParams,
+    measurements: &[Measurement],
+    documented: Option<&DatasetInfo>,
+    options: &DiagnoseOptions,
+    may_refine: bool,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Attempt, String> {
+    // Steps 1-5.
+    let rec = recording::analyse(params, measurements, documented, options, progress)?;
+    let plan_data: Vec<Vec<ExperimentData<'_>>> = rec
+        .start_sets
+        .iter()
+        .map(|(_, st)| experiment_data(measurements, &rec.settles, st))
+        .collect();
+    let constants_range = constants_range(params, options.fit.refit_range);
+    let fit_settings = FitSettings {
+        refit_range: constants_range.factors,
+        ..options.fit
+    };
+    let setup = rec.setup(options.substeps);
+    let fitter = PlanFitter {
+        setup,
+        plan_data: &plan_data,
+        training: &rec.training,
+        first_plan: rec.plan,
+        settings: &fit_settings,
+    };
+    // Step 6: the refitted nominal model.
+    let common_start = singles::common_start(&rec.nominal, rec.skew);
+    let refit = singles::refit_nominal(&fitter, &common_start);
+    progress(1);
+    let scorer = Scorer {
+        setup,
+        fitter: Some(&fitter),
+        plan_data: &plan_data,
+        dynamic: &rec.dynamic,
+        training: &rec.training,
+        held_out: &rec.held_out,
+        infos: &rec.infos,
+        noise_m: rec.noise_m,
+        none_threshold_m: none_threshold(rec.noise_m, rec.range_m),
+    };
+    let base = scorer.predict(&refit);
+    let refit_result = scorer.result(&refit, &base, &base);
+    let model_error_m = scorer.discretization_error(&refit, &base);
+    let gaps = Gaps::new(
+        refit_result.systematic_before_m,
+        model_error_m,
+        rec.noise_m,
+        rec.range_m,
+    );
+    if may_refine && gaps.only_the_model_error_says_none() {
+        // No need to fit the candidates at these substeps.
+        return Ok(Attempt::Refine {
+            gap_m: gaps.gap0,
+            model_error_m,
+        });
+    }
+    let stage = Stage {
+        fitter: &fitter,
+        scorer: &scorer,
+        nominal: &rec.nominal,
+        base: &base,
+        gaps,
+    };
+    // Steps 6-7: the single candidates.
+    let (mut ranked, mut singles_tie) =
+        singles::fit_library(&stage, &refit, &common_start, progress);
+    progress(1);
+    let mut winner = ranked.iter().position(|r| r.0.significant);
+    // Step 8: a second effect.
+    let plan = pairs::plan(&stage, &ranked, winner, refit_result.training_rms_m);
+    let second = pairs::second_stage(&stage, &ranked, plan);
+    if second.winner.is_none()
+        && !second.single_refits.is_empty()
+        && singles::take_better_optima(&stage, &mut ranked, second.single_refits.clone())
+    {
+        singles_tie = scoring::sort_by_held_out(&mut ranked, |r| r.significant);
+        winner = ranked.iter().position(|r| r.0.significant);
+    }
+    let verdict = verdict::decide(
+        &ranked,
+        winner,
+        second.winner.as_ref(),
+        (&refit.fitted.values, &refit_result, &base),
+        &gaps,
+        model_error_m,
+    );
+    let held_out_tie = verdict::tie_of(
+        &verdict.name,
+        second.winner.as_ref(),
+        second.tie.clone(),
+        singles_tie,
+        winner.map(|w| ranked[w].0.effect.as_str()),
+    );
+    let run = assemble(Assembly {
+        params,
+        measurements,
+        options,
+        rec,
+        ranked,
+        winner,
+        second,
+        verdict,
+        held_out_tie,
+        refit_result,
+        constants_range,
+        model_error_m,
+    });
+    Ok(Attempt::Done(Box::new(run)))
+}
+
+/// What [`assemble`] puts together.
+struct Assembly<'a> {
+    params: &'a actuator_params::ActuatorParams,
+    measurements: &'a [Measurement],
+    options: &'a DiagnoseOptions,
+    rec: Recording,
+    ranked: Vec<scoring::Ranked>,
+    winner: Option<usize>,
+    second: SecondStage,
+    verdict: verdict::Verdict,
+    held_out_tie: Option<HeldOutTie>,
+    refit_result: CandidateResult,
+    constants_range: ConstantsRange,
+    model_error_m: f64,
+}
+
+/// The report and the traces: the verdict with the effects the parameter file models, the
+/// lists around it, and every step's results.
+fn assemble(a: Assembly<'_>) -> DiagnosisRun {
+    let Assembly {
+        params,
+        measurements,
+        options,
+        rec,
+        ranked,
+        winner,
+        second,
+        verdict,
+        held_out_tie,
+        refit_result,
+        constants_range,
+        model_error_m,
+    } = a;
+    let mut additional_effects: Vec<String> = second
+        .winner
+        .iter()
+        .flat_map(|(_, _, names)| names.iter().skip(1).map(|n| n.name().to_string()))
+        .collect();
+    let effects_in_parameter_file = effects_identified_into(params);
+    let (mut name, mut reason) = (verdict.name, verdict.reason);
+    verdict::add_file_effects(
+        &effects_in_parameter_file,
+        &mut name,
+        &mut reason,
+        &mut additional_effects,
+    );
+    let ambiguous_with = verdict::ambiguous_with(&ranked, winner, &name);
+    let equal_on_training = match winner {
+        Some(w) if name == ranked[w].0.effect => {
+            equal_on_training(&ranked[w].0, ranked.iter().map(|r| &r.0))
+        }
+        _ => Vec::new(),
+    };
+    let traces = (0..measurements.len())
+        .map(|k| Trace {
+            name: rec.infos[k].name.clone(),
+            rate_hz: rec.rate_hz,
+            current_a: measurements[k].current_a.clone(),
+            measured_m: measurements[k].displacement_m.clone(),
+            nominal_m: rec.nominal_preds[k].clone(),
+            augmented_m: verdict
+                .predictions
+                .get(&k)
+                .cloned()
+                .unwrap_or_else(|| rec.nominal_preds[k].clone()),
+        })
+        .collect();
+    let also_significant = also_significant(
+        &ranked.iter().map(|r| &r.0).collect::<Vec<_>>(),
+        &std::iter::once(name.as_str())
+            .chain(additional_effects.iter().map(String::as_str))
+            .collect::<Vec<_>>(),
+    );
+    // (A `none` the parameter file's own effects replaced above is not `none`.)
+    let none_by_model_error = verdict.none_by_model_error && name == "none";
+    DiagnosisRun {
+        diagnosis: Diagnosis {
+            verdict: name,
+            verdict_reason: reason,
+            ambiguous_with,
+            equal_on_training,
+            held_out_tie,
+            additional_effects,
+            second_stage: second.results,
+            second_stage_reason: second.reason,
+            criterion: CRITERION.to_string(),
+            noise_m: rec.noise_m,
+            displacement_range_m: rec.range_m,
+            nominal_rms_m: rec.nominal_rms_m,
+            nominal_systematic_m: recording::nominal_systematic_m(&rec),
+            model_error_m,
+            substeps: options.substeps,
+            substeps_raised: None,
+            none_by_model_error,
+            also_significant,
+            constants_range,
+            effects_in_parameter_file,
+            parameter_file_warnings: params
+                .provenance
+                .warnings()
+                .into_iter()
+                .map(String::from)
+                .collect(),
+            refitted_nominal: refit_result,
+            nuisance: rec.nuisance,
+            experiments: rec.infos,
+            ranking: ranked.into_iter().map(|r| r.0).collect(),
+            where_: rec.where_,
+        },
+        traces,
+    }
+}

@@ -1,0 +1,229 @@
+//! The whole identification of a recorded dataset: [`identify`] turns a dataset folder and a
+//! base parameter file into the identified parameter file, what `maglab identify` writes.
+//!
+//! Steps, each in its own module:
+//!
+//! 1. **Masses** ([`crate::masses`]): the Preisach cell masses from the quasi-static records,
+//!    corrected for the base file's lags of `R_eddy`, `ξ`, `f0`; with `--reversible auto`,
+//!    with or without a reversible part ([`reversible`]).
+//! 2. **Dynamics** ([`dynamic`]): `R_eddy`, `ξ` by the paper's phase-lag scheme, then `R_eddy`,
+//!    `ξ`, `f0` by a waveform fit with the recording's nuisances estimated (the model of
+//!    `maglab-model`, the one `maglab diagnose` refits: an identified file is what the
+//!    diagnosis' refit gives on the same data).
+//! 3. **Alternation** ([`passes`]): the masses depend on the lags, the lags on the masses; the
+//!    two are fitted in turn until the constants settle, and the pass that fits the sines best
+//!    is kept.
+//! 4. **Checks** ([`checks`]): does the result describe the data it came from? Each failed
+//!    check is a warning in the result and in `provenance.warnings`.
+//!
+//! Without dynamic records `R_eddy`, `ξ`, `f0` are the base file's, and the provenance says so.
+
+pub mod checks;
+pub mod dynamic;
+pub mod passes;
+pub mod reversible;
+
+use crate::dynamics::{DynamicFit, DynamicOptions, Progress};
+use crate::experiments::{load_split_dataset, ClassifyOptions, SplitDataset};
+use crate::masses::{identify_masses, MassIdentification, MassOptions};
+use actuator_params::{ActuatorParams, ParamsError};
+use maglab_dataset::dataset_info::DatasetInfo;
+use maglab_dataset::DataError;
+use std::fmt;
+use std::path::Path;
+
+pub use passes::{ChosenPass, PassRecord};
+pub use reversible::{ReversibleChoice, ReversiblePart};
+
+/// A recorded dataset as the identification reads it: the files split into quasi-static and
+/// dynamic experiments, and the folder's `dataset.json` when it has one.
+#[derive(Debug, Clone)]
+pub struct RecordedDataset {
+    /// The experiments.
+    pub split: SplitDataset,
+    /// What the bench documented.
+    pub documented: Option<DatasetInfo>,
+}
+
+impl RecordedDataset {
+    /// Reads the folder `dir` (errors name the file, line, column or field).
+    pub fn load(dir: &Path, classify: &ClassifyOptions) -> Result<Self, DataError> {
+        Ok(RecordedDataset {
+            documented: DatasetInfo::load(dir)?,
+            split: load_split_dataset(dir, classify)?,
+        })
+    }
+}
+
+/// The base parameter file: the grid, the constants the data do not give, the prior masses and
+/// the start of every search.
+#[derive(Debug, Clone, Copy)]
+pub struct Base<'a> {
+    /// The file's contents.
+    pub params: &'a ActuatorParams,
+    /// Where it came from, for the provenance.
+    pub name: &'a str,
+}
+
+/// Settings of [`identify`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentifyOptions {
+    /// The mass fit (its lag correction and current timing are set by the passes).
+    pub masses: MassOptions,
+    /// Whether the model gets a reversible part.
+    pub reversible: ReversiblePart,
+    /// The phase-lag scheme.
+    pub dynamics: DynamicOptions,
+    /// Fit `R_eddy`, `ξ`, `f0` to the waveforms after the phase-lag scheme (`false`: the
+    /// scheme's `R_eddy`, `ξ` and the base `f0` are written).
+    pub waveform_fit: bool,
+    /// Electromagnetic substeps per sample of the waveform fit's model (`None`: enough for the
+    /// highest fitted frequency, `crate::dynamics::waveform::substeps_for`).
+    pub substeps: Option<usize>,
+}
+
+/// What [`identify`] found.
+#[derive(Debug, Clone)]
+pub struct Identified {
+    /// The identified parameter file, validated, its provenance complete (warnings included).
+    pub params: ActuatorParams,
+    /// The masses of the kept pass and how they fit each quasi-static record.
+    pub masses: MassIdentification,
+    /// The dynamic identification of the kept pass (none without dynamic records or with the
+    /// waveform fit off and no dynamic records).
+    pub dynamic: Option<DynamicFit>,
+    /// The alternation (none without dynamic records or without the waveform fit).
+    pub passes: Option<ChosenPass>,
+    /// `--reversible auto`'s decision (none for `none` and `piecewise`).
+    pub reversible: Option<ReversibleChoice>,
+    /// Every check the result failed (also in `provenance.warnings`).
+    pub warnings: Vec<String>,
+}
+
+/// Why an identification could not be made.
+#[derive(Debug)]
+pub enum IdentifyError {
+    /// The dataset cannot be identified from (no quasi-static records, ...).
+    Dataset(String),
+    /// A step failed; the text names it.
+    Step(String),
+    /// The identified parameters do not validate.
+    Invalid(ParamsError),
+}
+
+impl fmt::Display for IdentifyError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            IdentifyError::Dataset(s) | IdentifyError::Step(s) => f.write_str(s),
+            IdentifyError::Invalid(_) => f.write_str("the identified parameters do not validate"),
+        }
+    }
+}
+
+impl std::error::Error for IdentifyError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            IdentifyError::Invalid(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl IdentifyError {
+    /// A failed step: `what` and the error.
+    pub fn step(what: &str, error: impl fmt::Display) -> Self {
+        IdentifyError::Step(format!("{what}: {error}"))
+    }
+}
+
+/// Identifies `dataset` from `base` (see the module docs); `progress` reports the phase-lag
+/// scheme's grid (called from worker threads).
+pub fn identify(
+    dataset: &RecordedDataset,
+    base: Base<'_>,
+    options: &IdentifyOptions,
+    progress: &Progress<'_>,
+) -> Result<Identified, IdentifyError> {
+    let split = &dataset.split;
+    if split.quasi_static.is_empty() {
+        return Err(IdentifyError::Dataset(format!(
+            "{}: no quasi-static files: the Preisach masses need quasi-static data (a FORC sweep \
+             from `maglab excite`, slow loops); see docs/identification.md",
+            split.dir.display()
+        )));
+    }
+    let dynamic_stage = dynamic::DynamicStage {
+        dataset,
+        options,
+        progress,
+    };
+    let mut mass_options = MassOptions {
+        documented: dataset.documented.clone(),
+        lag_correction: Some(passes::constants_of(base.params)),
+        current_shift_samples: 0.0,
+        ..options.masses.clone()
+    };
+    mass_options.fit.reversible = options.reversible.first_fit();
+    let quasi_static = split.quasi_static_dataset();
+    let mut masses = identify_masses(&quasi_static, base.params, base.name, &mass_options)
+        .map_err(|e| IdentifyError::step("Preisach masses", e))?;
+    let mut reversible = None;
+    let mut first_pass: Option<DynamicFit> = None;
+    if options.reversible == ReversiblePart::Auto {
+        let decided = reversible::choose(&dynamic_stage, base, &mass_options, masses)?;
+        masses = decided.masses;
+        mass_options = decided.options;
+        first_pass = decided.first_pass;
+        reversible = Some(decided.choice);
+    }
+    let mut chosen = None;
+    let mut dynamic = None;
+    if !split.dynamic.is_empty() {
+        if options.waveform_fit {
+            let first = match first_pass {
+                Some(fit) => fit,
+                None => dynamic_stage.fit(&masses.params, None)?,
+            };
+            let kept = passes::alternate(&dynamic_stage, base, &mass_options, first)?;
+            masses = kept.masses.clone();
+            dynamic = Some(kept.fit.clone());
+            chosen = Some(kept);
+        } else {
+            dynamic = Some(dynamic_stage.fit(&masses.params, None)?);
+        }
+    }
+    let mut params = masses.params.clone();
+    if let Some(fit) = &dynamic {
+        crate::dynamics::record::record(&mut params, fit, split);
+        params
+            .validate("identified parameters")
+            .map_err(IdentifyError::Invalid)?;
+    }
+    if let Some(kept) = &chosen {
+        params
+            .provenance
+            .details
+            .insert("masses_lag_correction".into(), kept.provenance());
+    }
+    if let Some(choice) = &reversible {
+        params
+            .provenance
+            .details
+            .insert(reversible::PROVENANCE_KEY.into(), choice.provenance());
+    }
+    let warnings = checks::warnings(&masses, dynamic.as_ref(), base.params, &quasi_static);
+    if !warnings.is_empty() {
+        params.provenance.details.insert(
+            actuator_params::Provenance::WARNINGS.into(),
+            serde_json::json!(warnings),
+        );
+    }
+    Ok(Identified {
+        params,
+        masses,
+        dynamic,
+        passes: chosen,
+        reversible,
+        warnings,
+    })
+}
