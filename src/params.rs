@@ -192,165 +192,218 @@ include!(concat!(env!("OUT_DIR"), "/baked_params.rs"));
 /// The Preisach measure of the baked parameters, its tables computed at compile time.
 pub static BAKED_MEASURE: crate::preisach::PreisachMeasure = BAKED_PARAMETERS.preisach.measure();
 
-#[cfg(feature = "host")]
-mod from_file {
-    //! Run-time conversion of a parameter file (host tools), the same f64 → f32 narrowing
-    //! `build.rs` applies when it bakes a file.
-
-    use super::{
-        Actuator, ActuatorParameters, Amplifier, Control, Feedback, FeedbackStructure,
-        PreisachGrid, Sensor, Trajectory,
+impl ActuatorParameters {
+    /// Every number zero, the feedback off, no grid lines, no reversible part: the value the
+    /// baked constants are built from, one field at a time (`actuator_params::codegen`), and the
+    /// run-time conversion too (`from_file`). Not a usable actuator.
+    pub const ZERO: ActuatorParameters = ActuatorParameters {
+        actuator: Actuator {
+            coil_turns: 0.0,
+            rod_area_m2: 0.0,
+            rod_length_m: 0.0,
+            coil_factor_per_m: 0.0,
+            saturation_magnetization_a_per_m: 0.0,
+            saturation_magnetostriction: 0.0,
+            resonance_hz: 0.0,
+            eddy_resistance_ohm: 0.0,
+            damping_ratio: 0.0,
+        },
+        preisach: PreisachGrid {
+            h_min_a_per_m: 0.0,
+            h_max_a_per_m: 0.0,
+            lines_a_per_m: None,
+            reversible_susceptibility: None,
+            weights_a_per_m: [0.0; CELL_COUNT],
+        },
+        control: Control {
+            sample_rate_hz: 0.0,
+            current_limit_a: 0.0,
+            current_slew_limit_a_per_s: 0.0,
+            feedback: Feedback {
+                structure: FeedbackStructure::Off,
+                learning_gain: 0.0,
+                learning_harmonics: 0,
+                learning_leak_per_cycle: 0.0,
+                proportional_gain: 0.0,
+                integral_gain_per_s: 0.0,
+                correction_limit_m: 0.0,
+                stuck_sensor_ticks: 0,
+            },
+        },
+        amplifier: Amplifier {
+            compliance_voltage_v: 0.0,
+            coil_resistance_ohm: 0.0,
+            coil_inductance_h: 0.0,
+        },
+        sensor: Sensor {
+            adc_bits: 0,
+            gain_m_per_count: 0.0,
+            offset_m: 0.0,
+            valid_min_m: 0.0,
+            valid_max_m: 0.0,
+            sample_delay_s: 0.0,
+        },
+        trajectory: Trajectory {
+            van_der_pol_mu: 0.0,
+            frequency_scale_hz: 0.0,
+            displacement_min_m: 0.0,
+            displacement_max_m: 0.0,
+        },
     };
-    use crate::preisach::CELL_COUNT;
+}
+
+#[cfg(feature = "host")]
+mod file_mapping {
+    //! Run-time conversion between a parameter file and the core's types (host tools), derived
+    //! from the one list of core fields (`actuator_params::core_fields!`): narrowing is the same
+    //! f64 → f32 `build.rs` applies when it bakes a file; widening is exact.
+
+    use super::{ActuatorParameters, FeedbackStructure};
     use actuator_params::{ActuatorParams, ParamsError};
     use std::format;
-    use std::string::ToString;
+    use std::string::{String, ToString};
+    use std::vec::Vec;
 
-    impl Actuator {
-        /// The actuator constants of a parameter file, in f32.
-        pub fn from_file(a: &actuator_params::Actuator) -> Self {
-            Actuator {
-                coil_turns: a.coil_turns as f32,
-                rod_area_m2: a.rod_area_m2 as f32,
-                rod_length_m: a.rod_length_m as f32,
-                coil_factor_per_m: a.coil_factor_per_m as f32,
-                saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m as f32,
-                saturation_magnetostriction: a.saturation_magnetostriction as f32,
-                resonance_hz: a.resonance_hz as f32,
-                eddy_resistance_ohm: a.eddy_resistance_ohm as f32,
-                damping_ratio: a.damping_ratio as f32,
+    /// A file value narrowed to the core's type (`field` names it in an error).
+    trait Narrow<T> {
+        fn narrow(&self, source_name: &str, field: &str) -> Result<T, ParamsError>;
+    }
+
+    /// A core value widened to the file's type.
+    trait Widen<T> {
+        fn widen(&self) -> T;
+    }
+
+    impl Narrow<f32> for f64 {
+        fn narrow(&self, _: &str, _: &str) -> Result<f32, ParamsError> {
+            Ok(*self as f32)
+        }
+    }
+
+    impl Widen<f64> for f32 {
+        fn widen(&self) -> f64 {
+            *self as f64
+        }
+    }
+
+    impl Narrow<u32> for u32 {
+        fn narrow(&self, _: &str, _: &str) -> Result<u32, ParamsError> {
+            Ok(*self)
+        }
+    }
+
+    impl Widen<u32> for u32 {
+        fn widen(&self) -> u32 {
+            *self
+        }
+    }
+
+    impl Narrow<FeedbackStructure> for actuator_params::FeedbackStructure {
+        fn narrow(&self, _: &str, _: &str) -> Result<FeedbackStructure, ParamsError> {
+            Ok(match self {
+                actuator_params::FeedbackStructure::Off => FeedbackStructure::Off,
+                actuator_params::FeedbackStructure::Integral => FeedbackStructure::Integral,
+                actuator_params::FeedbackStructure::Repetitive => FeedbackStructure::Repetitive,
+            })
+        }
+    }
+
+    impl Widen<actuator_params::FeedbackStructure> for FeedbackStructure {
+        fn widen(&self) -> actuator_params::FeedbackStructure {
+            match self {
+                FeedbackStructure::Off => actuator_params::FeedbackStructure::Off,
+                FeedbackStructure::Integral => actuator_params::FeedbackStructure::Integral,
+                FeedbackStructure::Repetitive => actuator_params::FeedbackStructure::Repetitive,
             }
         }
     }
 
-    impl Feedback {
-        /// The feedback settings of a parameter file, in f32.
-        pub fn from_file(f: &actuator_params::Feedback) -> Self {
-            Feedback {
-                structure: match f.structure {
-                    actuator_params::FeedbackStructure::Off => FeedbackStructure::Off,
-                    actuator_params::FeedbackStructure::Integral => FeedbackStructure::Integral,
-                    actuator_params::FeedbackStructure::Repetitive => FeedbackStructure::Repetitive,
-                },
-                learning_gain: f.learning_gain as f32,
-                learning_harmonics: f.learning_harmonics,
-                learning_leak_per_cycle: f.learning_leak_per_cycle as f32,
-                proportional_gain: f.proportional_gain as f32,
-                integral_gain_per_s: f.integral_gain_per_s as f32,
-                correction_limit_m: f.correction_limit_m as f32,
-                stuck_sensor_ticks: f.stuck_sensor_ticks,
-            }
-        }
-    }
-
-    impl PreisachGrid {
-        /// The Preisach grid of a parameter file, in f32. Fails (naming the field) when the file
-        /// does not carry exactly [`CELL_COUNT`] weights.
-        pub fn from_file(
-            p: &actuator_params::Preisach,
-            source_name: &str,
-        ) -> Result<Self, ParamsError> {
-            if p.weights_a_per_m.len() != CELL_COUNT {
+    /// The core's fixed-length arrays: the file must carry exactly as many values.
+    impl<const N: usize> Narrow<[f32; N]> for Vec<f64> {
+        fn narrow(&self, source_name: &str, field: &str) -> Result<[f32; N], ParamsError> {
+            if self.len() != N {
                 return Err(ParamsError {
                     source_name: source_name.to_string(),
-                    field: "preisach.weights_a_per_m".into(),
-                    reason: format!(
-                        "the core needs {CELL_COUNT} weights, the file has {}",
-                        p.weights_a_per_m.len()
-                    ),
+                    field: field.to_string(),
+                    reason: format!("the core needs {N} values, the file has {}", self.len()),
                 });
             }
-            let mut weights_a_per_m = [0.0f32; CELL_COUNT];
-            for (dst, &src) in weights_a_per_m.iter_mut().zip(&p.weights_a_per_m) {
+            let mut out = [0.0f32; N];
+            for (dst, &src) in out.iter_mut().zip(self) {
                 *dst = src as f32;
             }
-            let lines_a_per_m = match &p.grid_lines_a_per_m {
-                None => None,
-                Some(given) => {
-                    let levels = crate::preisach::LEVELS;
-                    if given.len() != levels + 1 {
-                        return Err(ParamsError {
-                            source_name: source_name.to_string(),
-                            field: "preisach.grid_lines_a_per_m".into(),
-                            reason: format!(
-                                "the core needs {} grid lines, the file has {}",
-                                levels + 1,
-                                given.len()
-                            ),
-                        });
-                    }
-                    let mut lines = [0.0f32; crate::preisach::LEVELS + 1];
-                    for (dst, &src) in lines.iter_mut().zip(given) {
-                        *dst = src as f32;
-                    }
-                    Some(lines)
-                }
-            };
-            let reversible_susceptibility = match &p.reversible_susceptibility {
-                None => None,
-                Some(given) => {
-                    let levels = crate::preisach::LEVELS;
-                    if given.len() != levels {
-                        return Err(ParamsError {
-                            source_name: source_name.to_string(),
-                            field: "preisach.reversible_susceptibility".into(),
-                            reason: format!(
-                                "the core needs {levels} susceptibilities, the file has {}",
-                                given.len()
-                            ),
-                        });
-                    }
-                    let mut chi = [0.0f32; crate::preisach::LEVELS];
-                    for (dst, &src) in chi.iter_mut().zip(given) {
-                        *dst = src as f32;
-                    }
-                    Some(chi)
-                }
-            };
-            Ok(PreisachGrid {
-                h_min_a_per_m: p.h_min_a_per_m as f32,
-                h_max_a_per_m: p.h_max_a_per_m as f32,
-                lines_a_per_m,
-                reversible_susceptibility,
-                weights_a_per_m,
-            })
+            Ok(out)
         }
     }
 
-    impl ActuatorParameters {
-        /// All parameters of a (validated) parameter file in the core's f32 types.
-        pub fn from_file(file: &ActuatorParams, source_name: &str) -> Result<Self, ParamsError> {
-            let c = &file.control;
-            let t = &file.trajectory;
-            Ok(ActuatorParameters {
-                actuator: Actuator::from_file(&file.actuator),
-                preisach: PreisachGrid::from_file(&file.preisach, source_name)?,
-                control: Control {
-                    sample_rate_hz: c.sample_rate_hz as f32,
-                    current_limit_a: c.current_limit_a as f32,
-                    current_slew_limit_a_per_s: c.current_slew_limit_a_per_s as f32,
-                    feedback: Feedback::from_file(&c.feedback),
-                },
-                amplifier: Amplifier {
-                    compliance_voltage_v: file.amplifier.compliance_voltage_v as f32,
-                    coil_resistance_ohm: file.amplifier.coil_resistance_ohm as f32,
-                    coil_inductance_h: file.amplifier.coil_inductance_h as f32,
-                },
-                sensor: Sensor {
-                    adc_bits: file.sensor.adc_bits,
-                    gain_m_per_count: file.sensor.gain_m_per_count as f32,
-                    offset_m: file.sensor.offset_m as f32,
-                    valid_min_m: file.sensor.valid_min_m as f32,
-                    valid_max_m: file.sensor.valid_max_m as f32,
-                    sample_delay_s: file.sensor.sample_delay_s as f32,
-                },
-                trajectory: Trajectory {
-                    van_der_pol_mu: t.van_der_pol_mu as f32,
-                    frequency_scale_hz: t.frequency_scale_hz as f32,
-                    displacement_min_m: t.displacement_min_m as f32,
-                    displacement_max_m: t.displacement_max_m as f32,
-                },
-            })
+    impl<const N: usize> Widen<Vec<f64>> for [f32; N] {
+        fn widen(&self) -> Vec<f64> {
+            self.iter().map(|&v| v as f64).collect()
         }
     }
+
+    impl<const N: usize> Narrow<Option<[f32; N]>> for Option<Vec<f64>> {
+        fn narrow(&self, source_name: &str, field: &str) -> Result<Option<[f32; N]>, ParamsError> {
+            self.as_ref()
+                .map(|v| v.narrow(source_name, field))
+                .transpose()
+        }
+    }
+
+    impl<const N: usize> Widen<Option<Vec<f64>>> for Option<[f32; N]> {
+        fn widen(&self) -> Option<Vec<f64>> {
+            self.as_ref().map(Widen::widen)
+        }
+    }
+
+    macro_rules! narrow_all {
+        ($($($file:ident).+ => $($core:ident).+;)*) => {
+            /// All parameters of a (validated) parameter file in the core's f32 types (errors
+            /// name `source_name` and the field).
+            pub fn from_file(
+                file: &ActuatorParams,
+                source_name: &str,
+            ) -> Result<ActuatorParameters, ParamsError> {
+                let mut core = ActuatorParameters::ZERO;
+                $(
+                    core.$($core).+ = Narrow::narrow(
+                        &file.$($file).+,
+                        source_name,
+                        &actuator_params::field_path!($($file).+),
+                    )?;
+                )*
+                Ok(core)
+            }
+        };
+    }
+    actuator_params::core_fields!(narrow_all);
+
+    macro_rules! widen_all {
+        ($($($file:ident).+ => $($core:ident).+;)*) => {
+            /// `core` as a parameter file: every core field widened exactly to f64 into `base`
+            /// (which gives the fields the core does not carry).
+            pub fn to_file(core: &ActuatorParameters, mut base: ActuatorParams) -> ActuatorParams {
+                $( base.$($file).+ = Widen::widen(&core.$($core).+); )*
+                base
+            }
+        };
+    }
+    actuator_params::core_fields!(widen_all);
+
+    impl ActuatorParameters {
+        /// All parameters of a (validated) parameter file in the core's f32 types, the same
+        /// narrowing `build.rs` applies when it bakes a file.
+        pub fn from_file(file: &ActuatorParams, source_name: &str) -> Result<Self, ParamsError> {
+            from_file(file, source_name)
+        }
+
+        /// These parameters as a parameter file: every field widened exactly to f64, the rest
+        /// (provenance, schema version, the grid's level count) from `base`.
+        pub fn to_file(&self, base: ActuatorParams) -> ActuatorParams {
+            to_file(self, base)
+        }
+    }
+
+    #[allow(dead_code)]
+    fn _uses(_: String) {}
 }

@@ -57,72 +57,10 @@ pub fn load(path: Option<&Path>) -> Result<LoadedParams> {
     }
 }
 
-/// The core's f32 parameters as a parameter file (every value widened exactly to f64).
+/// The core's f32 parameters as a parameter file (every value widened exactly to f64; the
+/// rest of the paper defaults).
 pub fn widen(p: &ActuatorParameters) -> ActuatorParams {
-    let mut file = actuator_params::paper_defaults();
-    let a = &p.actuator;
-    file.actuator = actuator_params::Actuator {
-        coil_turns: a.coil_turns as f64,
-        rod_area_m2: a.rod_area_m2 as f64,
-        rod_length_m: a.rod_length_m as f64,
-        coil_factor_per_m: a.coil_factor_per_m as f64,
-        saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m as f64,
-        saturation_magnetostriction: a.saturation_magnetostriction as f64,
-        resonance_hz: a.resonance_hz as f64,
-        eddy_resistance_ohm: a.eddy_resistance_ohm as f64,
-        damping_ratio: a.damping_ratio as f64,
-    };
-    file.preisach.h_min_a_per_m = p.preisach.h_min_a_per_m as f64;
-    file.preisach.h_max_a_per_m = p.preisach.h_max_a_per_m as f64;
-    file.preisach.grid_lines_a_per_m = p
-        .preisach
-        .lines_a_per_m
-        .map(|lines| lines.iter().map(|&h| h as f64).collect());
-    file.preisach.weights_a_per_m = p
-        .preisach
-        .weights_a_per_m
-        .iter()
-        .map(|&w| w as f64)
-        .collect();
-    file.control.sample_rate_hz = p.control.sample_rate_hz as f64;
-    file.control.current_limit_a = p.control.current_limit_a as f64;
-    file.control.current_slew_limit_a_per_s = p.control.current_slew_limit_a_per_s as f64;
-    let f = &p.control.feedback;
-    file.control.feedback = actuator_params::Feedback {
-        structure: match f.structure {
-            magctl::params::FeedbackStructure::Off => actuator_params::FeedbackStructure::Off,
-            magctl::params::FeedbackStructure::Integral => {
-                actuator_params::FeedbackStructure::Integral
-            }
-            magctl::params::FeedbackStructure::Repetitive => {
-                actuator_params::FeedbackStructure::Repetitive
-            }
-        },
-        learning_gain: f.learning_gain as f64,
-        learning_harmonics: f.learning_harmonics,
-        learning_leak_per_cycle: f.learning_leak_per_cycle as f64,
-        proportional_gain: f.proportional_gain as f64,
-        integral_gain_per_s: f.integral_gain_per_s as f64,
-        correction_limit_m: f.correction_limit_m as f64,
-        stuck_sensor_ticks: f.stuck_sensor_ticks,
-    };
-    file.amplifier = actuator_params::Amplifier {
-        compliance_voltage_v: p.amplifier.compliance_voltage_v as f64,
-        coil_resistance_ohm: p.amplifier.coil_resistance_ohm as f64,
-        coil_inductance_h: p.amplifier.coil_inductance_h as f64,
-    };
-    file.sensor = actuator_params::Sensor {
-        adc_bits: p.sensor.adc_bits,
-        gain_m_per_count: p.sensor.gain_m_per_count as f64,
-        offset_m: p.sensor.offset_m as f64,
-        valid_min_m: p.sensor.valid_min_m as f64,
-        valid_max_m: p.sensor.valid_max_m as f64,
-        sample_delay_s: p.sensor.sample_delay_s as f64,
-    };
-    file.trajectory.van_der_pol_mu = p.trajectory.van_der_pol_mu as f64;
-    file.trajectory.frequency_scale_hz = p.trajectory.frequency_scale_hz as f64;
-    file.trajectory.displacement_min_m = p.trajectory.displacement_min_m as f64;
-    file.trajectory.displacement_max_m = p.trajectory.displacement_max_m as f64;
+    let mut file = p.to_file(actuator_params::paper_defaults());
     file.provenance.source = format!("baked into this build from {BAKED_PARAMETERS_SOURCE}");
     file
 }
@@ -177,6 +115,28 @@ mod tests {
             file: file.clone(),
         };
         assert_eq!(loaded.measure(), measure);
+    }
+
+    /// Narrowing and widening are derived from the same field list: a file narrowed, widened
+    /// and narrowed again is the same core value, the optional Preisach parts included.
+    #[test]
+    fn narrowing_and_widening_round_trip() {
+        assert_eq!(
+            to_core(&widen(&BAKED_PARAMETERS)).unwrap(),
+            BAKED_PARAMETERS
+        );
+        let mut file = actuator_params::paper_defaults();
+        file.preisach.reversible_susceptibility = Some(vec![2.0; file.preisach.levels]);
+        let core = to_core(&file).unwrap();
+        assert!(core.preisach.reversible_susceptibility.is_some());
+        assert_eq!(to_core(&widen(&core)).unwrap(), core);
+        // A vector of the wrong length names its field.
+        file.preisach.weights_a_per_m.pop();
+        let e = to_core(&file).unwrap_err();
+        assert!(
+            format!("{e:#}").contains("preisach.weights_a_per_m"),
+            "{e:#}"
+        );
     }
 
     #[test]

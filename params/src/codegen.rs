@@ -1,23 +1,63 @@
 //! Rust source for the typed constants `build.rs` writes into `OUT_DIR`.
 //!
-//! The generated file defines one constant, `BAKED_PARAMETERS`, of the core's
-//! `magctl::params::ActuatorParameters` type (f32 fields, same names and units as the JSON), and
-//! `BAKED_PARAMETERS_SOURCE`, the path the values were read from.
+//! The generated file defines `BAKED_PARAMETERS`, of the core's
+//! `magctl::params::ActuatorParameters` type (f32 fields, the same names and units as the JSON),
+//! built from `ActuatorParameters::ZERO` by one assignment per field of
+//! [`core_fields!`](crate::core_fields); `BAKED_PARAMETERS_SOURCE`, the path the values were read
+//! from; and `BAKED_PARAMETERS_PROVENANCE`, the file's `provenance.source`.
 
-use crate::ActuatorParams;
+use crate::{ActuatorParams, FeedbackStructure};
 use std::fmt::Write;
 
-fn lit(value: f64) -> String {
-    // `{:?}` prints the shortest representation that round-trips; it is a valid float literal.
-    format!("{:?}f32", value as f32)
+/// A file value as a literal of the core's type.
+trait CoreLiteral {
+    fn literal(&self) -> String;
+}
+
+impl CoreLiteral for f64 {
+    fn literal(&self) -> String {
+        // `{:?}` prints the shortest representation that round-trips; it is a valid float
+        // literal, narrowed as the run-time conversion narrows (`as f32`).
+        format!("{:?}f32", *self as f32)
+    }
+}
+
+impl CoreLiteral for u32 {
+    fn literal(&self) -> String {
+        format!("{self}")
+    }
+}
+
+impl CoreLiteral for FeedbackStructure {
+    fn literal(&self) -> String {
+        format!("FeedbackStructure::{self:?}")
+    }
+}
+
+impl CoreLiteral for Vec<f64> {
+    fn literal(&self) -> String {
+        let rows: Vec<String> = self
+            .chunks(5)
+            .map(|chunk| {
+                let line: Vec<String> = chunk.iter().map(CoreLiteral::literal).collect();
+                format!("        {},", line.join(", "))
+            })
+            .collect();
+        format!("[\n{}\n    ]", rows.join("\n"))
+    }
+}
+
+impl CoreLiteral for Option<Vec<f64>> {
+    fn literal(&self) -> String {
+        match self {
+            None => "None".into(),
+            Some(values) => format!("Some({})", values.literal()),
+        }
+    }
 }
 
 /// The Rust source of the baked constants.
 pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
-    let a = &params.actuator;
-    let p = &params.preisach;
-    let c = &params.control;
-    let t = &params.trajectory;
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -38,131 +78,22 @@ pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
         params.provenance.source
     );
     let _ = writeln!(out, "/// The parameters baked into this build.");
-    let _ = writeln!(
-        out,
-        "pub const BAKED_PARAMETERS: ActuatorParameters = ActuatorParameters {{"
-    );
-    let _ = writeln!(out, "    actuator: Actuator {{");
-    for (name, v) in [
-        ("coil_turns", a.coil_turns),
-        ("rod_area_m2", a.rod_area_m2),
-        ("rod_length_m", a.rod_length_m),
-        ("coil_factor_per_m", a.coil_factor_per_m),
-        (
-            "saturation_magnetization_a_per_m",
-            a.saturation_magnetization_a_per_m,
-        ),
-        ("saturation_magnetostriction", a.saturation_magnetostriction),
-        ("resonance_hz", a.resonance_hz),
-        ("eddy_resistance_ohm", a.eddy_resistance_ohm),
-        ("damping_ratio", a.damping_ratio),
-    ] {
-        let _ = writeln!(out, "        {name}: {},", lit(v));
+    let _ = writeln!(out, "pub const BAKED_PARAMETERS: ActuatorParameters = {{");
+    let _ = writeln!(out, "    let mut p = ActuatorParameters::ZERO;");
+    macro_rules! assignments {
+        ($($($file:ident).+ => $($core:ident).+;)*) => {
+            $(
+                let _ = writeln!(
+                    out,
+                    "    p.{} = {};",
+                    crate::field_path!($($core).+),
+                    CoreLiteral::literal(&params.$($file).+)
+                );
+            )*
+        };
     }
-    let _ = writeln!(out, "    }},");
-    let _ = writeln!(out, "    preisach: PreisachGrid {{");
-    let _ = writeln!(out, "        h_min_a_per_m: {},", lit(p.h_min_a_per_m));
-    let _ = writeln!(out, "        h_max_a_per_m: {},", lit(p.h_max_a_per_m));
-    match &p.grid_lines_a_per_m {
-        None => {
-            let _ = writeln!(out, "        lines_a_per_m: None,");
-        }
-        Some(lines) => {
-            let _ = writeln!(out, "        lines_a_per_m: Some([");
-            for chunk in lines.chunks(5) {
-                let line: Vec<String> = chunk.iter().map(|&h| lit(h)).collect();
-                let _ = writeln!(out, "            {},", line.join(", "));
-            }
-            let _ = writeln!(out, "        ]),");
-        }
-    }
-    match &p.reversible_susceptibility {
-        None => {
-            let _ = writeln!(out, "        reversible_susceptibility: None,");
-        }
-        Some(chi) => {
-            let _ = writeln!(out, "        reversible_susceptibility: Some([");
-            for chunk in chi.chunks(5) {
-                let line: Vec<String> = chunk.iter().map(|&c| lit(c)).collect();
-                let _ = writeln!(out, "            {},", line.join(", "));
-            }
-            let _ = writeln!(out, "        ]),");
-        }
-    }
-    let _ = writeln!(out, "        weights_a_per_m: [");
-    for chunk in p.weights_a_per_m.chunks(5) {
-        let line: Vec<String> = chunk.iter().map(|&w| lit(w)).collect();
-        let _ = writeln!(out, "            {},", line.join(", "));
-    }
-    let _ = writeln!(out, "        ],");
-    let _ = writeln!(out, "    }},");
-    let _ = writeln!(out, "    control: Control {{");
-    for (name, v) in [
-        ("sample_rate_hz", c.sample_rate_hz),
-        ("current_limit_a", c.current_limit_a),
-        ("current_slew_limit_a_per_s", c.current_slew_limit_a_per_s),
-    ] {
-        let _ = writeln!(out, "        {name}: {},", lit(v));
-    }
-    let f = &c.feedback;
-    let _ = writeln!(out, "        feedback: Feedback {{");
-    let _ = writeln!(
-        out,
-        "            structure: FeedbackStructure::{:?},",
-        f.structure
-    );
-    for (name, v) in [
-        ("learning_gain", f.learning_gain),
-        ("learning_leak_per_cycle", f.learning_leak_per_cycle),
-        ("proportional_gain", f.proportional_gain),
-        ("integral_gain_per_s", f.integral_gain_per_s),
-        ("correction_limit_m", f.correction_limit_m),
-    ] {
-        let _ = writeln!(out, "            {name}: {},", lit(v));
-    }
-    for (name, v) in [
-        ("learning_harmonics", f.learning_harmonics),
-        ("stuck_sensor_ticks", f.stuck_sensor_ticks),
-    ] {
-        let _ = writeln!(out, "            {name}: {v},");
-    }
-    let _ = writeln!(out, "        }},");
-    let _ = writeln!(out, "    }},");
-    let _ = writeln!(out, "    amplifier: Amplifier {{");
-    for (name, v) in [
-        (
-            "compliance_voltage_v",
-            params.amplifier.compliance_voltage_v,
-        ),
-        ("coil_resistance_ohm", params.amplifier.coil_resistance_ohm),
-        ("coil_inductance_h", params.amplifier.coil_inductance_h),
-    ] {
-        let _ = writeln!(out, "        {name}: {},", lit(v));
-    }
-    let _ = writeln!(out, "    }},");
-    let sn = &params.sensor;
-    let _ = writeln!(out, "    sensor: Sensor {{");
-    let _ = writeln!(out, "        adc_bits: {},", sn.adc_bits);
-    for (name, v) in [
-        ("gain_m_per_count", sn.gain_m_per_count),
-        ("offset_m", sn.offset_m),
-        ("valid_min_m", sn.valid_min_m),
-        ("valid_max_m", sn.valid_max_m),
-        ("sample_delay_s", sn.sample_delay_s),
-    ] {
-        let _ = writeln!(out, "        {name}: {},", lit(v));
-    }
-    let _ = writeln!(out, "    }},");
-    let _ = writeln!(out, "    trajectory: Trajectory {{");
-    for (name, v) in [
-        ("van_der_pol_mu", t.van_der_pol_mu),
-        ("frequency_scale_hz", t.frequency_scale_hz),
-        ("displacement_min_m", t.displacement_min_m),
-        ("displacement_max_m", t.displacement_max_m),
-    ] {
-        let _ = writeln!(out, "        {name}: {},", lit(v));
-    }
-    let _ = writeln!(out, "    }},");
+    crate::core_fields!(assignments);
+    let _ = writeln!(out, "    p");
     let _ = writeln!(out, "}};");
     out
 }

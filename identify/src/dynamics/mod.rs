@@ -31,7 +31,7 @@ pub mod waveform;
 use crate::experiments::DynamicExperiment;
 use actuator_params::ActuatorParams;
 use maglab_signal::spectrum::{harmonic_fit, wrap_lag_rad, HarmonicFit};
-use simulate::{core_measure, simulate as run, DynamicParams, SimulationOptions};
+use simulate::{core_params, simulate as run, DynamicParams, SimulationOptions};
 use std::fmt;
 use std::ops::Range;
 
@@ -129,6 +129,8 @@ pub struct Prepared<'a> {
     pub base: &'a ActuatorParams,
     /// Base dynamic parameters.
     pub base_dynamic: DynamicParams,
+    /// The base's constants in the core's f32 types.
+    pub base_actuator: magctl::params::Actuator,
     /// Options.
     pub options: DynamicOptions,
     /// `R̄`, Ω.
@@ -227,6 +229,7 @@ pub fn prepare<'a>(
     Ok(Prepared {
         base,
         base_dynamic,
+        base_actuator: core_params(base)?.actuator,
         options: *options,
         r_bar_ohm: eddy_resistance_upper_bound_ohm(base, options.resistivity_ohm_m),
         experiments: prepared,
@@ -348,7 +351,7 @@ pub fn fit_eddy_and_damping(
     progress: &Progress<'_>,
 ) -> Result<DynamicFit, DynamicError> {
     let prepared = prepare(experiments, base, options)?;
-    let measure = core_measure(base)?;
+    let measure = core_params(base)?.preisach.measure();
     // An f0 given by the user stands (the scheme's error included); the file's f0 is scanned
     // around when the measured lags cannot be met with it.
     let phase_lag = match options.phase_lag_resonance_hz {
@@ -370,7 +373,14 @@ pub fn fit_eddy_and_damping(
         .iter()
         .map(|e| {
             let m = &e.experiment.measurement;
-            let pl = run(&measure, base, &phase_lag_params, m, &options.simulation).displacement_m;
+            let pl = run(
+                &measure,
+                &prepared.base_actuator,
+                &phase_lag_params,
+                m,
+                &options.simulation,
+            )
+            .displacement_m;
             ExperimentReport {
                 file: file_name(e.experiment),
                 frequency_hz: e.experiment.frequency_hz,

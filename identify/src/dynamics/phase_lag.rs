@@ -116,7 +116,7 @@ fn evaluate(
     for (e, theta_y) in prepared.experiments.iter().zip(measured) {
         let sim = simulate(
             measure,
-            prepared.base,
+            &prepared.base_actuator,
             &p,
             &e.experiment.measurement,
             &prepared.options.simulation,

@@ -23,7 +23,7 @@
 
 use actuator_params::ActuatorParams;
 use magctl::model::DynamicModel;
-use magctl::params::{Actuator, PreisachGrid};
+use magctl::params::{Actuator, ActuatorParameters};
 use magctl::preisach::{PreisachMeasure, PreisachState, DEFAULT_CAPACITY};
 use maglab_dataset::data::Measurement;
 use maglab_dataset::{CurrentBetweenSamples, StartState};
@@ -68,20 +68,19 @@ impl DynamicParams {
     }
 }
 
-/// The core's f32 actuator constants of `base` with the dynamic parameters replaced.
-pub fn core_actuator(base: &ActuatorParams, p: &DynamicParams) -> Actuator {
+/// The core's f32 actuator constants `base` with the dynamic parameters replaced.
+pub fn core_actuator(base: &Actuator, p: &DynamicParams) -> Actuator {
     Actuator {
         resonance_hz: p.resonance_hz as f32,
         eddy_resistance_ohm: p.eddy_resistance_ohm as f32,
         damping_ratio: p.damping_ratio as f32,
-        ..Actuator::from_file(&base.actuator)
+        ..*base
     }
 }
 
-/// The core's Preisach coefficients of `params` (the narrowing `build.rs` applies).
-pub fn core_measure(params: &ActuatorParams) -> Result<PreisachMeasure, super::DynamicError> {
-    PreisachGrid::from_file(&params.preisach, "base parameters")
-        .map(|grid| grid.measure())
+/// The core's f32 parameters of `params` (the narrowing `build.rs` applies).
+pub fn core_params(params: &ActuatorParams) -> Result<ActuatorParameters, super::DynamicError> {
+    ActuatorParameters::from_file(params, "base parameters")
         .map_err(|e| super::DynamicError(e.to_string()))
 }
 
@@ -120,11 +119,11 @@ pub struct Simulated {
     pub displacement_m: Vec<f64>,
 }
 
-/// Simulates `measurement`'s current through (4)-(5) with `measure`, the constants of `base` and
+/// Simulates `measurement`'s current through (4)-(5) with `measure`, the constants `base` and
 /// the dynamic parameters `p`.
 pub fn simulate(
     measure: &PreisachMeasure,
-    base: &ActuatorParams,
+    base: &Actuator,
     p: &DynamicParams,
     measurement: &Measurement,
     options: &SimulationOptions,
