@@ -399,6 +399,55 @@ pub fn decode_batch(
         }))
 }
 
+/// The record's defmt lines, as every firmware image that records logs them and `cargo xtask
+/// record` decodes them: `MEAS-BEGIN <rate> Hz <experiments> experiments <start state>`, one
+/// `MEAS-EXP <index> <ticks> <kind> <a> <b> <c>` per experiment, then `MEAS <experiment> <first
+/// tick> <bytes>` per batch. Thread mode only: never from the interrupt.
+#[cfg(target_os = "none")]
+pub mod log {
+    use super::RecordDrain;
+    use crate::programme::{IdentificationProgramme, EXPERIMENTS};
+
+    /// Logs the programme's header lines (`MEAS-BEGIN`, one `MEAS-EXP` per experiment).
+    pub fn programme(programme: &IdentificationProgramme, rate_hz: f32) {
+        defmt::info!(
+            "MEAS-BEGIN {=f32} Hz {=u32} experiments negative-saturation",
+            rate_hz,
+            EXPERIMENTS as u32
+        );
+        let mut k = 0;
+        while let Some(e) = programme.experiment(k) {
+            let (kind, a, b, c) = e.kind.fields();
+            defmt::info!(
+                "MEAS-EXP {=u32} {=u32} {=str} {=f32} {=f32} {=f32}",
+                k as u32,
+                e.ticks,
+                kind,
+                a,
+                b,
+                c
+            );
+            k += 1;
+        }
+    }
+
+    /// Logs the ready batches (`MEAS` lines; with `flush`, the last partial one too) while
+    /// `room()` says the log transport takes one more (a batch that does not fit waits in the
+    /// drain; the queue behind it keeps filling).
+    pub fn batches(drain: &mut RecordDrain<'_>, flush: bool, mut room: impl FnMut() -> bool) {
+        while room() {
+            let Some(b) = drain.poll(flush) else { break };
+            defmt::info!(
+                "MEAS {=u8} {=u32} {=[u8]}",
+                b.experiment(),
+                b.first_tick(),
+                b.bytes()
+            );
+            drain.logged();
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;

@@ -77,6 +77,7 @@ pub use firmware::*;
 mod firmware {
     use core::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, AtomicU8, Ordering};
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
+    use magctl::board::command_line::{ArgError, CommandLine};
     use magctl::board::handoff::HandOff;
     use magctl::board::mps2_an386::semihosting;
     use magctl::board::mps2_an386::uart::{CmsdkUart, UART0_BASE};
@@ -267,57 +268,50 @@ mod firmware {
         })
     }
 
-    /// `key=<decimal>` from the command line.
-    fn arg_u32(line: &[u8], key: &[u8]) -> Option<u32> {
-        let at = line.windows(key.len()).position(|w| w == key)? + key.len();
-        let mut value: u32 = 0;
-        let mut digits = 0;
-        for &c in line.get(at..)? {
-            if !c.is_ascii_digit() {
-                break;
-            }
-            value = value.checked_mul(10)?.checked_add((c - b'0') as u32)?;
-            digits += 1;
-        }
-        (digits > 0).then_some(value)
+    /// What the command line asks for (`ticks=N mode=track|measure|measure-local
+    /// inverse=dynamic|static condition=on|off feedback=on|off`, each optional).
+    struct Arguments {
+        tracking_ticks: u32,
+        /// Measurement mode (the host streams the programme, or the firmware plays it).
+        measure: bool,
+        /// The firmware plays the programme itself and records it (`mode=measure-local`).
+        local: bool,
+        condition: bool,
+        feedback_off: bool,
+        kind: InverseKind,
     }
 
-    /// Logs the programme's header lines (`MEAS-BEGIN`, one `MEAS-EXP` per experiment) that
-    /// `cargo xtask record` reads with the batches.
-    fn log_programme(programme: &IdentificationProgramme, rate_hz: f32) {
-        defmt::info!(
-            "MEAS-BEGIN {=f32} Hz {=u32} experiments negative-saturation",
-            rate_hz,
-            magctl::programme::EXPERIMENTS as u32
-        );
-        let mut k = 0;
-        while let Some(e) = programme.experiment(k) {
-            let (kind, a, b, c) = e.kind.fields();
-            defmt::info!(
-                "MEAS-EXP {=u32} {=u32} {=str} {=f32} {=f32} {=f32}",
-                k as u32,
-                e.ticks,
-                kind,
-                a,
-                b,
-                c
-            );
-            k += 1;
-        }
+    /// The command line's [`Arguments`]; an unknown word or value is logged by name and is an
+    /// error (the run exits 4).
+    fn parse_command_line(line: &[u8], rate_hz: f32) -> Result<Arguments, ()> {
+        let args = CommandLine::new(line);
+        let parsed = (|| {
+            args.check(&[b"ticks", b"mode", b"inverse", b"condition", b"feedback"])?;
+            let mode = args
+                .choice(b"mode", &[b"track", b"measure", b"measure-local"])?
+                .unwrap_or(0);
+            let off = |key: &[u8]| args.choice(key, &[b"on", b"off"]).map(|v| v == Some(1));
+            Ok(Arguments {
+                tracking_ticks: args.number(b"ticks")?.unwrap_or(rate_hz as u32),
+                measure: mode >= 1,
+                local: mode == 2,
+                condition: mode == 0 && !off(b"condition")?,
+                feedback_off: off(b"feedback")?,
+                kind: match args.choice(b"inverse", &[b"dynamic", b"static"])? {
+                    Some(1) => InverseKind::Static,
+                    _ => InverseKind::Dynamic,
+                },
+            })
+        })();
+        parsed.map_err(|e: ArgError<'_>| {
+            defmt::error!("command line: cannot use `{=[u8]:a}`", e.word());
+        })
     }
 
-    /// Logs every ready batch of the record (`MEAS <experiment> <first tick> <bytes>`); with
-    /// `flush`, the last partial one too.
+    /// Logs every ready batch of the record; with `flush`, the last partial one too
+    /// (semihosting blocks until the host took the line).
     fn log_batches(drain: &mut RecordDrain<'static>, flush: bool) {
-        while let Some(b) = drain.poll(flush) {
-            defmt::info!(
-                "MEAS {=u8} {=u32} {=[u8]}",
-                b.experiment(),
-                b.first_tick(),
-                b.bytes()
-            );
-            drain.logged();
-        }
+        magctl::record::log::batches(drain, flush, || true);
     }
 
     fn end(uart: &mut CmsdkUart, seq: u16, status: u32) -> ! {
@@ -375,16 +369,17 @@ mod firmware {
         let mut line_buf = [0u8; 128];
         let n = semihosting::command_line(&mut line_buf);
         let line = line_buf.get(..n).unwrap_or(&[]);
-        let tracking_ticks = arg_u32(line, b"ticks=").unwrap_or(rate_hz as u32);
-        let measure = line.windows(12).any(|w| w == b"mode=measure");
-        let local = line.windows(18).any(|w| w == b"mode=measure-local");
-        let condition = !measure && !line.windows(13).any(|w| w == b"condition=off");
-        let feedback_off = line.windows(12).any(|w| w == b"feedback=off");
-        let kind = if line.windows(14).any(|w| w == b"inverse=static") {
-            InverseKind::Static
-        } else {
-            InverseKind::Dynamic
+        let Ok(args) = parse_command_line(line, rate_hz) else {
+            semihosting::exit(4)
         };
+        let Arguments {
+            tracking_ticks,
+            measure,
+            local,
+            condition,
+            feedback_off,
+            kind,
+        } = args;
         let control = match ControlLoop::new(&BAKED_MEASURE, &BAKED_PARAMETERS) {
             Ok(c) if feedback_off => {
                 let off = c.feedback().off();
@@ -449,7 +444,7 @@ mod firmware {
             let l = control.limiter();
             let ramp = libm::ceilf(l.limit_a() / l.max_step_a()) as u32 + 2;
             ticks = programme.total_ticks(0.0).saturating_add(ramp);
-            log_programme(&programme, rate_hz);
+            magctl::record::log::programme(&programme, rate_hz);
             Some(Recorder::new(programme, producer))
         } else {
             None

@@ -207,47 +207,13 @@ mod firmware {
         TICKS.fetch_add(1, Ordering::Relaxed);
     }
 
-    /// Logs the programme's header lines (`MEAS-BEGIN`, one `MEAS-EXP` per experiment) that
-    /// `cargo xtask record` reads with the batches.
-    #[cfg(feature = "measurement-mode")]
-    fn log_programme(programme: &magctl::programme::IdentificationProgramme, rate_hz: f32) {
-        defmt::info!(
-            "MEAS-BEGIN {=f32} Hz {=u32} experiments negative-saturation",
-            rate_hz,
-            magctl::programme::EXPERIMENTS as u32
-        );
-        let mut k = 0;
-        while let Some(e) = programme.experiment(k) {
-            let (kind, a, b, c) = e.kind.fields();
-            defmt::info!(
-                "MEAS-EXP {=u32} {=u32} {=str} {=f32} {=f32} {=f32}",
-                k as u32,
-                e.ticks,
-                kind,
-                a,
-                b,
-                c
-            );
-            k += 1;
-        }
-    }
-
     /// Logs the ready batches of the record while they fit in the RTT ring (a batch that does
     /// not fit waits in the drain for the probe; the queue behind it keeps filling).
     #[cfg(feature = "measurement-mode")]
     fn log_batches(drain: &mut RecordDrain<'static>, flush: bool) {
         /// A batch's frame, worst case (header, payload, rzCOBS overhead, delimiter).
         const FRAME_BYTES_MAX: usize = 256;
-        while rtt::free_bytes() >= FRAME_BYTES_MAX {
-            let Some(b) = drain.poll(flush) else { break };
-            defmt::info!(
-                "MEAS {=u8} {=u32} {=[u8]}",
-                b.experiment(),
-                b.first_tick(),
-                b.bytes()
-            );
-            drain.logged();
-        }
+        magctl::record::log::batches(drain, flush, || rtt::free_bytes() >= FRAME_BYTES_MAX);
     }
 
     fn halt(reason: &str) -> ! {
@@ -308,7 +274,7 @@ mod firmware {
                 halt("record queue taken twice")
             };
             let (producer, consumer) = queue.split();
-            log_programme(&programme, p.control.sample_rate_hz);
+            magctl::record::log::programme(&programme, p.control.sample_rate_hz);
             (
                 Recorder::new(programme, producer),
                 RecordDrain::new(consumer),

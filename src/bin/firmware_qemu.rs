@@ -66,6 +66,7 @@ mod firmware {
     use core::sync::atomic::{AtomicBool, Ordering};
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
     use magctl::board::capture_phase::CapturePhase;
+    use magctl::board::command_line::CommandLine;
     use magctl::board::handoff::HandOff;
     use magctl::board::mps2_an386::capture::{encode, Record, Ring};
     use magctl::board::mps2_an386::semihosting::{self, HostFile};
@@ -507,23 +508,35 @@ mod firmware {
     fn inject_faults_from_command_line() -> bool {
         let mut buf = [0u8; 128];
         let n = semihosting::command_line(&mut buf);
-        let line = buf.get(..n).unwrap_or(&[]);
-        let has = |needle: &[u8]| line.windows(needle.len()).any(|w| w == needle);
-        if has(b"inject=sensor-fault") {
-            defmt::info!(
-                "fault injection: an out-of-range sensor sample at dynamic-phase interrupt {=u32} (expect exit status 7)",
-                SENSOR_FAULT_TICK
-            );
-            return true;
-        }
-        if has(b"inject=hardfault") {
-            defmt::info!("fault injection: executing UDF (expect exit status 102)");
-            cortex_m::asm::udf();
-        }
-        #[cfg(not(feature = "panic-never"))]
-        if has(b"inject=panic") {
-            defmt::info!("fault injection: panicking (expect exit status 101)");
-            core::panic!("injected panic");
+        let args = CommandLine::new(buf.get(..n).unwrap_or(&[]));
+        let inject = args
+            .check(&[b"inject"])
+            .and_then(|()| args.choice(b"inject", &[b"sensor-fault", b"hardfault", b"panic"]));
+        let inject = match inject {
+            Ok(v) => v,
+            Err(e) => {
+                defmt::error!("command line: cannot use `{=[u8]:a}`", e.word());
+                semihosting::exit(4)
+            }
+        };
+        match inject {
+            Some(0) => {
+                defmt::info!(
+                    "fault injection: an out-of-range sensor sample at dynamic-phase interrupt {=u32} (expect exit status 7)",
+                    SENSOR_FAULT_TICK
+                );
+                return true;
+            }
+            Some(1) => {
+                defmt::info!("fault injection: executing UDF (expect exit status 102)");
+                cortex_m::asm::udf();
+            }
+            #[cfg(not(feature = "panic-never"))]
+            Some(2) => {
+                defmt::info!("fault injection: panicking (expect exit status 101)");
+                core::panic!("injected panic");
+            }
+            _ => {}
         }
         false
     }

@@ -1,6 +1,6 @@
 //! Board support for the firmware. The two boards are behind their features (and only make sense
-//! for `target_os = "none"`); [`polled_spi`], [`handoff`] and [`capture_phase`] are
-//! board-independent and tested on the host.
+//! for `target_os = "none"`); [`polled_spi`], [`handoff`], [`capture_phase`] and
+//! [`command_line`] are board-independent and tested on the host.
 //!
 //! * [`mps2_an386`] (feature `board-mps2-an386`): QEMU's `mps2-an386` (Cortex-M4F, 25 MHz):
 //!   CMSDK TIMER0 (IRQ 8) as the control timer, TIMER1 and SysTick for measurement, a PL022 SPI
@@ -12,6 +12,7 @@
 //! Linker files live in `boards/<board>/` (selected by `build.rs` from the feature).
 
 pub mod capture_phase;
+pub mod command_line;
 pub mod handoff;
 #[cfg(all(target_os = "none", feature = "board-mps2-an386"))]
 pub mod mps2_an386;
