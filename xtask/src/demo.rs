@@ -14,8 +14,29 @@ use anyhow::{bail, Result};
 /// Output directory of the demo, relative to the repository root.
 pub const OUT_DIR: &str = "out";
 
+/// `cargo xtask demo`'s options.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Another parameter file for `maglab loops` (the firmware and the tracking figures always
+    /// use the parameters baked into the build).
+    #[arg(long, value_name = "FILE")]
+    params: Option<std::path::PathBuf>,
+    /// Further options of `maglab loops` (`--amplitudes 20,12,6`, `--points N`).
+    #[arg(
+        trailing_var_arg = true,
+        allow_hyphen_values = true,
+        value_name = "LOOPS_OPTIONS"
+    )]
+    loops_options: Vec<String>,
+}
+
 /// Runs `cargo xtask demo`.
-pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
+pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
+    let mut loops_args: Vec<String> = args.loops_options.clone();
+    if let Some(p) = &args.params {
+        loops_args.extend(["--params".to_string(), p.display().to_string()]);
+    }
+    let args = &loops_args;
     if args.iter().any(|a| a == "--out" || a.starts_with("--out=")) {
         bail!("`demo` always writes into {OUT_DIR}/; run `maglab loops --out DIR` for another directory");
     }

@@ -9,7 +9,7 @@
 //! (`fuzz-targets/tests/corpus_smoke.rs`).
 
 use crate::util::{display, run_checked, Ctx};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use std::process::Command;
 
 /// The targets (the same list as `maglab_fuzz_targets::TARGETS`, which xtask does not link).
@@ -20,25 +20,21 @@ const TARGETS: [&str; 4] = [
     "core_numerics",
 ];
 
-pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
-    let mut seconds = 600u64;
-    let mut chosen = Vec::new();
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--seconds" => {
-                let v = it.next().context("--seconds needs a number")?;
-                seconds = v
-                    .parse()
-                    .with_context(|| format!("--seconds `{v}`: not a whole number"))?;
-            }
-            t if TARGETS.contains(&t) => chosen.push(t),
-            other => bail!(
-                "unknown fuzz target or option `{other}` (targets: {})",
-                TARGETS.join(", ")
-            ),
-        }
-    }
+/// `cargo xtask fuzz`'s options.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Seconds per target.
+    #[arg(long, default_value_t = 600)]
+    seconds: u64,
+    /// The targets to fuzz (default: all).
+    #[arg(value_parser = TARGETS)]
+    targets: Vec<String>,
+}
+
+/// Runs `cargo xtask fuzz`.
+pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
+    let seconds = args.seconds;
+    let mut chosen: Vec<&str> = args.targets.iter().map(String::as_str).collect();
     if chosen.is_empty() {
         chosen = TARGETS.to_vec();
     }

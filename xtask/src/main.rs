@@ -13,9 +13,11 @@
 //! * `fuzz` ([`fuzz`]): the long cargo-fuzz runs (nightly); `test` replays their corpus.
 //!
 //! # Adding a command
-//! 1. Write `src/<name>.rs` with `pub fn run(ctx: &Ctx, args: &[String]) -> anyhow::Result<()>`
-//!    (use [`util::Ctx::cargo`] / [`util::run_checked`] to run processes in the repository root).
-//! 2. Declare the module below (`mod <name>;`) and add a [`Command`] entry to [`COMMANDS`].
+//! 1. Write `src/<name>.rs` with its options as a `clap::Args` struct and `pub fn run(ctx: &Ctx,
+//!    args: &Args) -> anyhow::Result<()>` (use [`util::Ctx::cargo`] / [`util::run_checked`] to
+//!    run processes in the repository root).
+//! 2. Declare the module below (`mod <name>;`) and add a variant to [`Task`] (its doc comment
+//!    is the line `cargo xtask help` shows) and its arm in [`main`].
 //! 3. To make `cargo xtask test` run it as a step, add a [`test::Step`] to `test::steps` (the
 //!    marked hook there); to run it from `cargo xtask demo`, call it at the hook in `demo::run`.
 
@@ -32,92 +34,49 @@ mod setup;
 mod test;
 mod util;
 
+use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use util::Ctx;
 
-/// A subcommand: its name, a one-line description and its entry point (`args` are the words
-/// after the command name).
-pub struct Command {
-    /// What the user types after `cargo xtask`.
-    pub name: &'static str,
-    /// One line for `cargo xtask help`.
-    pub about: &'static str,
-    /// Runs the command.
-    pub run: fn(&Ctx, &[String]) -> anyhow::Result<()>,
+/// Project automation: `cargo xtask <command> --help` lists a command's options.
+#[derive(Debug, Parser)]
+#[command(name = "cargo xtask", bin_name = "cargo xtask")]
+struct Cli {
+    #[command(subcommand)]
+    task: Task,
 }
 
-/// Every subcommand, in the order `help` lists them.
-const COMMANDS: &[Command] = &[
-    Command {
-        name: "setup",
-        about: "install what is missing: thumbv7em-none-eabihf target, rustfmt, clippy, qemu-system-arm",
-        run: setup::run,
-    },
-    Command {
-        name: "test",
-        about: "setup, then fmt, clippy -D warnings, workspace tests, no_std build, doc links, QEMU run, NUCLEO build [--keep-going]",
-        run: test::run,
-    },
-    Command {
-        name: "hil",
-        about: "virtual bench: the firmware under QEMU in lock-step with a plant program over UART0 (docs/hil.md) [--plant-cmd CMD] [--effect E] [--ticks N] [--inject KIND@TICK] [--check]",
-        run: hil::run,
-    },
-    Command {
-        name: "robustness",
-        about: "closed-loop robustness matrix: every case on the host, three as firmware under QEMU, open vs closed loop -> out/robustness/robustness.csv, table, plot [maglab robustness options: --gain-scale G, --static-inverse, --structure S ...]",
-        run: robustness::run,
-    },
-    Command {
-        name: "qemu",
-        about: "build the mps2-an386 firmware, run it in QEMU, check commands, tracking, instruction counts, no-panic proof",
-        run: qemu::run,
-    },
-    Command {
-        name: "nucleo",
-        about: "build the NUCLEO-F446RE firmware, report its sizes, prove it panic-free at link time",
-        run: nucleo::run,
-    },
-    Command {
-        name: "record",
-        about: "the firmware's own measurement record (MEAS lines of its defmt log) -> dataset folder: -o DIR (--log FILE | -- probe-rs run --chip STM32F446RETx out/nucleo/firmware-nucleo-measure.elf)",
-        run: record::run,
-    },
-    Command {
-        name: "fuzz",
-        about: "cargo-fuzz (nightly) on every fuzz target for 600 s each [--seconds N] [TARGET...]",
-        run: fuzz::run,
-    },
-    Command {
-        name: "demo",
-        about: "setup, then `maglab loops` (out/loops.png, out/displacement.png), the QEMU run (out/qemu/) and Figures 7/8 (out/track/)",
-        run: demo::run,
-    },
-];
-
-fn usage() {
-    eprintln!("usage: cargo xtask <command> [args]\n\ncommands:");
-    for c in COMMANDS {
-        eprintln!("  {:<8} {}", c.name, c.about);
-    }
-    eprintln!("  {:<8} show this list", "help");
+/// Every command, in the order `cargo xtask help` lists them.
+#[derive(Debug, Subcommand)]
+enum Task {
+    /// Install what is missing: thumbv7em-none-eabihf target, rustfmt, clippy, qemu-system-arm.
+    Setup,
+    /// Setup, then every check: fmt, clippy -D warnings (host and firmware), the workspace's
+    /// tests, the no_std build, doc links, the QEMU run, the virtual bench, the robustness
+    /// matrix, the NUCLEO build, the blind suite.
+    Test(test::Args),
+    /// The main job: the Preisach loops, the rate-dependent model, the firmware under QEMU and
+    /// the paper's Figures 7/8, into out/.
+    Demo(demo::Args),
+    /// The virtual bench: the firmware under QEMU in lock-step with a plant program over UART0
+    /// (docs/hil.md).
+    Hil(hil::Args),
+    /// The closed loop's robustness matrix: every case on the host, three as firmware under
+    /// QEMU, open vs closed loop (out/robustness/).
+    Robustness(robustness::Args),
+    /// Build the mps2-an386 firmware, run it in QEMU, check its commands, tracking, instruction
+    /// counts and the no-panic proof.
+    Qemu,
+    /// Build the NUCLEO-F446RE firmware, report its sizes, prove it panic-free at link time.
+    Nucleo,
+    /// The firmware's own measurement record (MEAS lines of its defmt log) → a dataset folder.
+    Record(record::Args),
+    /// cargo-fuzz (nightly) on the fuzz targets.
+    Fuzz(fuzz::Args),
 }
 
 fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let Some(name) = args.first() else {
-        usage();
-        return ExitCode::from(2);
-    };
-    if matches!(name.as_str(), "help" | "-h" | "--help") {
-        usage();
-        return ExitCode::SUCCESS;
-    }
-    let Some(command) = COMMANDS.iter().find(|c| c.name == name) else {
-        eprintln!("error: unknown xtask command `{name}`\n");
-        usage();
-        return ExitCode::from(2);
-    };
+    let cli = Cli::parse();
     let ctx = match Ctx::new() {
         Ok(ctx) => ctx,
         Err(e) => {
@@ -125,7 +84,18 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match (command.run)(&ctx, &args[1..]) {
+    let (name, result) = match &cli.task {
+        Task::Setup => ("setup", setup::run(&ctx)),
+        Task::Test(a) => ("test", test::run(&ctx, a)),
+        Task::Demo(a) => ("demo", demo::run(&ctx, a)),
+        Task::Hil(a) => ("hil", hil::run(&ctx, a)),
+        Task::Robustness(a) => ("robustness", robustness::run(&ctx, a)),
+        Task::Qemu => ("qemu", qemu::run(&ctx)),
+        Task::Nucleo => ("nucleo", nucleo::run(&ctx)),
+        Task::Record(a) => ("record", record::run(&ctx, a)),
+        Task::Fuzz(a) => ("fuzz", fuzz::run(&ctx, a)),
+    };
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("\nerror: cargo xtask {name}: {e:#}");

@@ -285,25 +285,24 @@ pub fn write_dataset(record: &Record, dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// `cargo xtask record`'s options: `-o DIR (--log FILE | -- COMMAND ARGS...)`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The dataset folder to write.
+    #[arg(short, long, value_name = "DIR")]
+    out: PathBuf,
+    /// A saved defmt log of the measurement run.
+    #[arg(long, value_name = "FILE", conflicts_with = "command")]
+    log: Option<PathBuf>,
+    /// The command that prints the decoded log (after `--`), e.g. `probe-rs run --chip
+    /// STM32F446RETx out/nucleo/firmware-nucleo-measure.elf`.
+    #[arg(last = true, value_name = "COMMAND")]
+    command: Vec<String>,
+}
+
 /// `cargo xtask record -o DIR (--log FILE | -- COMMAND ARGS...)`.
-pub fn run(_ctx: &crate::util::Ctx, args: &[String]) -> Result<()> {
-    let mut out: Option<PathBuf> = None;
-    let mut log: Option<PathBuf> = None;
-    let mut command: Vec<String> = Vec::new();
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "-o" | "--out" => out = Some(it.next().context("-o needs a folder")?.into()),
-            "--log" => log = Some(it.next().context("--log needs a file")?.into()),
-            "--" => {
-                command = it.by_ref().cloned().collect();
-            }
-            other => bail!(
-                "unknown argument `{other}`; usage: cargo xtask record -o DIR (--log FILE | -- COMMAND ARGS...)"
-            ),
-        }
-    }
-    let out = out.context("-o DIR is required (the dataset folder to write)")?;
+pub fn run(_ctx: &crate::util::Ctx, args: &Args) -> Result<()> {
+    let (out, log, command) = (args.out.clone(), args.log.clone(), args.command.clone());
     let mut parser = RecordParser::default();
     match (log, command.is_empty()) {
         (Some(path), true) => {

@@ -140,9 +140,23 @@ fn read_rows(csv: &Path) -> Result<Vec<Row>> {
         .collect()
 }
 
+/// `cargo xtask robustness`'s options: those of `maglab robustness`, passed on.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Options of `maglab robustness` (`--gain-scale G`, `--static-inverse`, `--structure S`,
+    /// ...: `cargo run -p maglab -- robustness --help`); with any of them the goals are not
+    /// checked and the QEMU rows are skipped.
+    #[arg(
+        trailing_var_arg = true,
+        allow_hyphen_values = true,
+        value_name = "MAGLAB_OPTIONS"
+    )]
+    maglab_options: Vec<String>,
+}
+
 /// Runs `cargo xtask robustness [maglab robustness options]`.
-pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
-    check_with(ctx, args).map(|_| ())
+pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
+    check_with(ctx, &args.maglab_options).map(|_| ())
 }
 
 /// The matrix with the default gains and its goals (the `cargo xtask test` step).

@@ -15,10 +15,7 @@ use std::path::Path;
 pub const FIRMWARE_TARGET: &str = "thumbv7em-none-eabihf";
 
 /// Runs `cargo xtask setup`.
-pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
-    if let Some(extra) = args.first() {
-        bail!("`setup` takes no arguments, got `{extra}`");
-    }
+pub fn run(ctx: &Ctx) -> Result<()> {
     ensure(ctx)
 }
 

@@ -347,15 +347,17 @@ fn children_cpu() -> Duration {
     tv(usage.ru_utime) + tv(usage.ru_stime)
 }
 
+/// `cargo xtask test`'s options.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Run the remaining steps after a failure (to see every failure at once).
+    #[arg(long)]
+    keep_going: bool,
+}
+
 /// Runs `cargo xtask test`.
-pub fn run(ctx: &Ctx, args: &[String]) -> Result<()> {
-    let mut keep_going = false;
-    for arg in args {
-        match arg.as_str() {
-            "--keep-going" => keep_going = true,
-            other => bail!("`test` takes only --keep-going, got `{other}`"),
-        }
-    }
+pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
+    let keep_going = args.keep_going;
     let started = Instant::now();
     setup::ensure(ctx)?;
     let setup_time = started.elapsed();
