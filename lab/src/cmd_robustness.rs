@@ -21,7 +21,8 @@
 //! closed_loop_max_pct,current_rms_a`), `<out>/robustness.png/.svg`, and prints the table.
 
 use crate::params_io::{self, LoadedParams};
-use crate::plot::{Figure, Panel, Series, PALETTE};
+use crate::plot::PALETTE;
+use crate::plot_bars::{BarChart, BarSeries};
 use actuator_params::ActuatorParams;
 use anyhow::{bail, Context, Result};
 use clap::Args as ClapArgs;
@@ -512,44 +513,28 @@ pub fn table(rows: &[Row]) -> String {
     s
 }
 
-/// The plot: open- vs closed-loop RMS per case (log scale).
+/// The plot: open- vs closed-loop RMS per case, named bars on a log axis in % of the
+/// peak-to-peak, with the 1 % goal.
 pub fn plot(stem: &Path, rows: &[Row]) -> Result<Vec<PathBuf>> {
-    let mut panel = Panel::new(
-        "Robustness matrix: tracking RMS per case (index as in robustness.csv)",
-        "case index",
-        "log10(RMS error, % of p-p)",
-    );
-    let series = |label: &str, color, f: &dyn Fn(&Row) -> f64| Series {
-        label: Some(label.to_string()),
-        points: rows
-            .iter()
-            .enumerate()
-            .map(|(i, r)| (i as f64, f(r).max(1e-3).log10()))
-            .collect(),
-        color,
-        width: 2,
-    };
-    panel
-        .series
-        .push(series("feedforward (open loop)", PALETTE[1], &|r| {
-            r.open_loop.rms_pct
-        }));
-    panel
-        .series
-        .push(series("with feedback (closed loop)", PALETTE[0], &|r| {
-            r.closed_loop.rms_pct
-        }));
-    panel.series.push(Series {
-        label: Some("1 % goal".into()),
-        points: vec![(0.0, 0.0), ((rows.len().max(1) - 1) as f64, 0.0)],
-        color: PALETTE[6],
-        width: 1,
-    });
-    Figure {
-        panels: vec![panel],
-        rows: 1,
-        cols: 1,
-        size_px: (1100, 500),
+    let values = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
+    BarChart {
+        title: "Robustness matrix: tracking RMS error per case".into(),
+        value_label: "RMS tracking error, % of the trajectory's peak-to-peak (log scale)".into(),
+        unit: "%".into(),
+        cases: rows.iter().map(|r| r.case.clone()).collect(),
+        series: vec![
+            BarSeries {
+                label: "feedforward (open loop)".into(),
+                color: PALETTE[5],
+                values: values(&|r| r.open_loop.rms_pct),
+            },
+            BarSeries {
+                label: "with feedback (closed loop)".into(),
+                color: PALETTE[1],
+                values: values(&|r| r.closed_loop.rms_pct),
+            },
+        ],
+        reference: Some(("1 % goal".into(), 1.0)),
     }
     .write(stem)
 }

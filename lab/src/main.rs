@@ -23,6 +23,7 @@ mod cmd_simulate;
 mod cmd_track;
 mod params_io;
 mod plot;
+mod plot_bars;
 mod plot_identify;
 mod plot_preisach;
 
