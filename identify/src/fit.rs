@@ -258,6 +258,43 @@ pub fn fit(
     prior: Option<&[f64]>,
     options: &FitOptions,
 ) -> Result<FitResult, FitError> {
+    check_inputs(grid, prior, options)?;
+    let scale = output_scale(experiments)?;
+    let design = Design::build(
+        grid,
+        experiments,
+        options.reversible,
+        scale,
+        options.row_stride,
+    );
+    let unexcited = design.unexcited();
+    let n = design.unknowns;
+    let (h, g) = quadratic_form(grid, &design, prior, options, scale);
+    let (p, q) = objective(&h, &g, n);
+    let fixed = fixed_cells(&unexcited, prior, options, scale);
+    let (a, b, cones) = constraints(&fixed, options, scale, n);
+    let (z, status, iterations) = solve_qp(&p, &q, &a, &b, &cones)?;
+    let rms_residual = residual_rms(&design, &z, scale);
+    let (weights, offset, slope, reversible_slopes) =
+        in_output_units(grid, &z, &fixed, prior, options, scale);
+    Ok(FitResult {
+        weights,
+        offset,
+        slope,
+        reversible_slopes,
+        unexcited,
+        rows: design.rows,
+        strided_out: design.strided_out,
+        rms_residual,
+        output_scale: scale,
+        outside: design.outside,
+        solver: format!("clarabel {status:?} in {iterations} iterations"),
+    })
+}
+
+/// The fit's inputs make sense: a finite range, a prior of every cell, non-negative weights,
+/// and an unexcited-cell treatment that determines them.
+fn check_inputs(grid: &Grid, prior: Option<&[f64]>, options: &FitOptions) -> Result<(), FitError> {
     if !(grid.h_min.is_finite() && grid.h_max.is_finite() && grid.h_min < grid.h_max) {
         return Err(FitError(format!(
             "invalid input range [{}, {}]",
@@ -301,7 +338,11 @@ pub fn fit(
         }
         _ => {}
     }
-    // Output scale: the range of the selected outputs.
+    Ok(())
+}
+
+/// The output scale the unknowns are normalized by: the range of the selected outputs.
+fn output_scale(experiments: &[Experiment<'_>]) -> Result<f64, FitError> {
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
     for e in experiments {
@@ -317,19 +358,21 @@ pub fn fit(
             "the selected rows have no output variation (or there are none): nothing to fit".into(),
         ));
     }
-    let scale = hi - lo;
-    let design = Design::build(
-        grid,
-        experiments,
-        options.reversible,
-        scale,
-        options.row_stride,
-    );
-    let unexcited = design.unexcited();
+    Ok(hi - lo)
+}
+
+/// The quadratic form `H` (row-major, n × n) and the linear term `g` of the cost
+/// `J = zᵀ H z − 2 gᵀ z + const`: the normal equations, the smoothness and ridge priors, and the
+/// reversible part's smoothing.
+fn quadratic_form(
+    grid: &Grid,
+    design: &Design,
+    prior: Option<&[f64]>,
+    options: &FitOptions,
+    scale: f64,
+) -> (Vec<f64>, Vec<f64>) {
     let n = design.unknowns;
     let rows = design.rows as f64;
-
-    // Quadratic form H (row-major, n x n) and linear term g of J = zᵀ H z - 2 gᵀ z + const.
     let mut h: Vec<f64> = design.ata.iter().map(|v| v / rows).collect();
     let mut g: Vec<f64> = design.atb.iter().map(|v| v / rows).collect();
     let rho_ref = 1.0 / (LEVELS * LEVELS) as f64;
@@ -378,7 +421,11 @@ pub fn fit(
         }
     }
 
-    // clarabel: minimize ½ zᵀ P z + qᵀ z, P = 2H (upper triangle), q = -2g.
+    (h, g)
+}
+
+/// clarabel's objective: minimize ½ zᵀ P z + qᵀ z with P = 2H (upper triangle, CSC), q = −2g.
+fn objective(h: &[f64], g: &[f64], n: usize) -> (CscMatrix<f64>, Vec<f64>) {
     let mut colptr = Vec::with_capacity(n + 1);
     let mut rowval = Vec::new();
     let mut nzval = Vec::new();
@@ -396,18 +443,39 @@ pub fn fit(
     let p = CscMatrix::new(n, n, colptr, rowval, nzval);
     let q: Vec<f64> = g.iter().map(|v| -2.0 * v).collect();
 
-    // Constraints: fixed cells (equalities, zero cone) first, then w >= 0 for the free cells.
-    let fixed: Vec<(usize, f64)> = match options.unexcited {
+    (p, q)
+}
+
+/// The cells whose mass is fixed (unexcited ones kept at the prior or at zero), normalized.
+fn fixed_cells(
+    unexcited: &[usize],
+    prior: Option<&[f64]>,
+    options: &FitOptions,
+    scale: f64,
+) -> Vec<(usize, f64)> {
+    match options.unexcited {
         Unexcited::KeepPrior => unexcited
             .iter()
             .map(|&k| (k, prior.map_or(0.0, |p| p[k]) / scale))
             .collect(),
         Unexcited::Zero => unexcited.iter().map(|&k| (k, 0.0)).collect(),
         Unexcited::Regularized => Vec::new(),
-    };
+    }
+}
+
+/// The constraints `A z + s = b`, `s` in the cones: the fixed cells (equalities, zero cone)
+/// first, then `w ≥ 0` for the free cells (and monotone reversible slopes), then the cap on the
+/// total mass.
+fn constraints(
+    fixed: &[(usize, f64)],
+    options: &FitOptions,
+    scale: f64,
+    n: usize,
+) -> (CscMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
+    let slope0 = options.reversible.first_slope();
     let is_fixed = {
         let mut v = vec![false; CELL_COUNT];
-        for &(k, _) in &fixed {
+        for &(k, _) in fixed {
             v[k] = true;
         }
         v
@@ -459,12 +527,23 @@ pub fn fit(
     if free.len() + capped > 0 {
         cones.push(NonnegativeConeT(free.len() + capped));
     }
+    (a, b, cones)
+}
+
+/// Solves the QP; returns the solution, the solver's status and its iterations.
+fn solve_qp(
+    p: &CscMatrix<f64>,
+    q: &[f64],
+    a: &CscMatrix<f64>,
+    b: &[f64],
+    cones: &[SupportedConeT<f64>],
+) -> Result<(Vec<f64>, SolverStatus, u32), FitError> {
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
         .max_iter(500)
         .build()
         .map_err(|e| FitError(format!("solver settings: {e:?}")))?;
-    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
+    let mut solver = DefaultSolver::new(p, q, a, b, cones, settings)
         .map_err(|e| FitError(format!("solver setup failed: {e:?}")))?;
     solver.solve();
     let status = solver.solution.status;
@@ -475,27 +554,47 @@ pub fn fit(
         )));
     }
     let z = solver.solution.x.clone();
-    // Residual from the normal equations: ‖Az - b‖² = zᵀAᵀAz - 2 zᵀAᵀb + bᵀb.
+    Ok((z, status, solver.solution.iterations))
+}
+
+/// The RMS residual of `z`, output units, from the normal equations:
+/// `‖Az − b‖² = zᵀAᵀAz − 2 zᵀAᵀb + bᵀb`.
+fn residual_rms(design: &Design, z: &[f64], scale: f64) -> f64 {
+    let n = design.unknowns;
+    let rows = design.rows as f64;
     let mut quad = 0.0;
     for r in 0..n {
         let s: f64 = design.ata[r * n..(r + 1) * n]
             .iter()
-            .zip(&z)
+            .zip(z)
             .map(|(a, b)| a * b)
             .sum();
         quad += z[r] * s;
     }
     let cross: f64 = (0..n).map(|r| z[r] * design.atb[r]).sum();
     let sse = (quad - 2.0 * cross + design.btb).max(0.0);
-    let rms_residual = (sse / rows).sqrt() * scale;
+    (sse / rows).sqrt() * scale
+}
 
+/// The masses (output units, the solver's slack below zero clipped, fixed cells exact) and the
+/// affine or reversible part of the solution `z`.
+#[allow(clippy::type_complexity)]
+fn in_output_units(
+    grid: &Grid,
+    z: &[f64],
+    fixed: &[(usize, f64)],
+    prior: Option<&[f64]>,
+    options: &FitOptions,
+    scale: f64,
+) -> (Vec<f64>, f64, f64, Vec<f64>) {
+    let slope0 = options.reversible.first_slope();
     // Back to output units; clip the solver's interior-point slack (|w̃| ~ 1e-10) at zero.
     let mut weights: Vec<f64> = z[..CELL_COUNT]
         .iter()
         .map(|w| (w * scale).max(0.0))
         .collect();
     // Fixed cells get their exact value (not the solver's rescaled copy of it).
-    for &(k, _) in &fixed {
+    for &(k, _) in fixed {
         weights[k] = match options.unexcited {
             Unexcited::KeepPrior => prior.map_or(0.0, |p| p[k]),
             _ => 0.0,
@@ -524,20 +623,5 @@ pub fn fit(
             (offset, 0.0, slopes)
         }
     };
-    Ok(FitResult {
-        weights,
-        offset,
-        slope,
-        reversible_slopes,
-        unexcited,
-        rows: design.rows,
-        strided_out: design.strided_out,
-        rms_residual,
-        output_scale: scale,
-        outside: design.outside,
-        solver: format!(
-            "clarabel {status:?} in {} iterations",
-            solver.solution.iterations
-        ),
-    })
+    (weights, offset, slope, reversible_slopes)
 }

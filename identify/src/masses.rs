@@ -367,27 +367,108 @@ pub fn identify_masses(
         Grid::of_params(&base.preisach).map_err(|e| FitError(format!("{base_name}: {e}")))?;
     let zero_band_m = options.zero_band_fraction * model.stroke_m();
     let sensor_offset_m = displacement_offset_m(dataset, a.coil_factor_per_m, &grid);
-    let mut fields = Vec::new();
-    let mut conversions = Vec::new();
-    let mut labels = Vec::new();
-    let mut initials = Vec::new();
-    let mut displacements: Vec<Vec<f64>> = Vec::new();
-    let mut noises_m = Vec::new();
-    let mut floors_m = Vec::new();
-    let mut choices = Vec::new();
-    for m in &dataset.measurements {
-        let correction = options.lag_correction.map(|c| LagCorrection::new(base, c));
+    let records: Vec<Record> = dataset
+        .measurements
+        .iter()
+        .map(|m| {
+            let setting = RecordSetting {
+                base,
+                model: &model,
+                grid: &grid,
+                zero_band_m,
+                sensor_offset_m: sensor_offset_m.unwrap_or(0.0),
+                options,
+            };
+            setting.convert(m)
+        })
+        .collect();
+    let (selected, rows_below_floor) = select_rows(&records, &model, zero_band_m);
+    let experiments: Vec<Experiment<'_>> = records
+        .iter()
+        .zip(&selected)
+        .map(|(r, selected)| Experiment {
+            label: &r.label,
+            input: &r.field,
+            output: &r.conversion.m_a_per_m,
+            selected,
+            initial: r.initial,
+            weights: None,
+        })
+        .collect();
+    let result = fit_masses(&grid, &experiments, base, options, &model)?;
+    let files = file_reports(
+        dataset,
+        &records,
+        &rows_below_floor,
+        &grid,
+        &result,
+        options,
+        &model,
+    );
+    let choices: Vec<Value> = records.iter().map(|r| r.choice.clone()).collect();
+    let params = identified_params(
+        (dataset, base, base_name),
+        options,
+        &result,
+        &files,
+        &choices,
+        sensor_offset_m,
+    )?;
+    Ok(MassIdentification {
+        params,
+        fit: result,
+        files,
+    })
+}
+
+/// One quasi-static record made ready for the mass fit.
+struct Record {
+    /// File name.
+    label: String,
+    /// The field `H` (lag-corrected), A/m.
+    field: Vec<f64>,
+    /// `M` from the (lag-corrected, offset-free) displacement.
+    conversion: crate::magnetization::Conversion,
+    /// The start state the record is simulated from.
+    initial: StartState,
+    /// The displacement the masses are fitted to (lag-corrected), m.
+    displacement_m: Vec<f64>,
+    /// White-noise level of the displacement, m.
+    noise_m: f64,
+    /// Rows below this displacement are left out, m.
+    floor_m: f64,
+    /// How the start state and the sign convention were chosen, for the provenance.
+    choice: Value,
+}
+
+/// What every record's conversion shares.
+struct RecordSetting<'a> {
+    base: &'a ActuatorParams,
+    model: &'a StaticModel,
+    grid: &'a Grid,
+    zero_band_m: f64,
+    sensor_offset_m: f64,
+    options: &'a MassOptions,
+}
+
+impl RecordSetting<'_> {
+    /// The record `m` with its current read at the fit's timing, the sensor offset removed,
+    /// the lags corrected, its start state and sign convention chosen, converted to `M`.
+    fn convert(&self, m: &maglab_dataset::data::Measurement) -> Record {
+        let (a, options) = (&self.base.actuator, self.options);
+        let correction = options
+            .lag_correction
+            .map(|c| LagCorrection::new(self.base, c));
         let current_a = shifted(&m.current_a, options.current_shift_samples);
         let h_static: Vec<f64> = current_a.iter().map(|i| a.coil_factor_per_m * i).collect();
         let y: Vec<f64> = m
             .displacement_m
             .iter()
-            .map(|y| y - sensor_offset_m.unwrap_or(0.0))
+            .map(|y| y - self.sensor_offset_m)
             .collect();
         let noise_m = displacement_noise_m(&y);
         let gain = correction.map_or(1.0, |c| c.noise_gain(m.step_s));
-        noises_m.push(noise_m);
-        floors_m.push(fit_floor_m(zero_band_m, gain * noise_m, model.stroke_m()));
+        let floor_m = fit_floor_m(self.zero_band_m, gain * noise_m, self.model.stroke_m());
         let displacement = match &correction {
             Some(c) => c.displacement(&y, m.step_s),
             None => y,
@@ -405,7 +486,7 @@ pub fn identify_masses(
                 .and_then(documented_initial)
             {
                 Some(i) => (i, "documented"),
-                None => (auto_initial(&h_static, &grid), "estimated"),
+                None => (auto_initial(&h_static, self.grid), "estimated"),
             },
         };
         let branch = options.branch.unwrap_or_else(|| auto_branch(&current_a));
@@ -414,61 +495,74 @@ pub fn identify_masses(
             StartState::PositiveSaturation => 1,
             _ => 0,
         };
-        let conv = magnetization(
-            &model,
+        let conversion = magnetization(
+            self.model,
             &displacement,
             &h_static,
             branch,
             initial_sign,
-            zero_band_m,
+            self.zero_band_m,
         );
-        let h = match &correction {
-            Some(c) => c.field(&current_a, &conv.m_a_per_m, m.step_s),
+        let field = match &correction {
+            Some(c) => c.field(&current_a, &conversion.m_a_per_m, m.step_s),
             None => h_static,
         };
-        initials.push(initial);
-        displacements.push(displacement.clone());
-        choices.push(json!({"file": name, "initial_state": initial.name(), "initial_state_from": how, "branch": branch.name()}));
-        labels.push(m.path.file_name().map_or_else(
-            || m.path.display().to_string(),
-            |n| n.to_string_lossy().into(),
-        ));
-        fields.push(h);
-        conversions.push(conv);
+        Record {
+            choice: json!({"file": name, "initial_state": initial.name(), "initial_state_from": how, "branch": branch.name()}),
+            label: name,
+            field,
+            conversion,
+            initial,
+            displacement_m: displacement,
+            noise_m,
+            floor_m,
+        }
     }
-    // Rows whose |M| lies below the fit floor are left out of the regression: inside the zero
-    // band the sign of M is uncertain, and near zero M = M_s √(u/S) turns the sensor noise into
-    // tens of kA/m (dM/du grows as 1/√u) with a bias (`fit_floor_m`). The memory still sees them.
+}
+
+/// The rows each record's regression keeps, and how many between the zero band and the fit
+/// floor it leaves out. Rows whose |M| lies below the fit floor are left out: inside the zero
+/// band the sign of M is uncertain, and near zero M = M_s √(u/S) turns the sensor noise into
+/// tens of kA/m (dM/du grows as 1/√u) with a bias (`fit_floor_m`). The memory still sees them.
+fn select_rows(
+    records: &[Record],
+    model: &StaticModel,
+    zero_band_m: f64,
+) -> (Vec<Vec<bool>>, Vec<usize>) {
     // |M| at u (static model (6)).
     let m_at = |u_m: f64| model.saturation_magnetization_a_per_m * (u_m / model.stroke_m()).sqrt();
     let m_zero_band = m_at(zero_band_m);
-    let (selected, rows_below_floor): (Vec<Vec<bool>>, Vec<usize>) = conversions
+    records
         .iter()
-        .zip(&floors_m)
-        .map(|(c, &floor)| {
-            let m_floor = m_at(floor);
-            let kept: Vec<bool> = c.m_a_per_m.iter().map(|m| m.abs() >= m_floor).collect();
-            let below = c
+        .map(|r| {
+            let m_floor = m_at(r.floor_m);
+            let kept: Vec<bool> = r
+                .conversion
+                .m_a_per_m
+                .iter()
+                .map(|m| m.abs() >= m_floor)
+                .collect();
+            let below = r
+                .conversion
                 .m_a_per_m
                 .iter()
                 .filter(|m| (m_zero_band..m_floor).contains(&m.abs()))
                 .count();
             (kept, below)
         })
-        .unzip();
-    let experiments: Vec<Experiment<'_>> = (0..fields.len())
-        .map(|k| Experiment {
-            label: &labels[k],
-            input: &fields[k],
-            output: &conversions[k].m_a_per_m,
-            selected: &selected[k],
-            initial: initials[k],
-            weights: None,
-        })
-        .collect();
-    // With a reversible part the masses saturate at M_s (Σ masses <= M_s) and the part carries
-    // the magnetization beyond it (the paper's model alone keeps its masses free: what they
-    // absorb past M_s is what `--reversible auto` looks at).
+        .unzip()
+}
+
+/// The mass fit, the base masses as prior. With a reversible part the masses saturate at M_s
+/// (Σ masses <= M_s) and the part carries the magnetization beyond it (the paper's model alone
+/// keeps its masses free: what they absorb past M_s is what `--reversible auto` looks at).
+fn fit_masses(
+    grid: &Grid,
+    experiments: &[Experiment<'_>],
+    base: &ActuatorParams,
+    options: &MassOptions,
+    model: &StaticModel,
+) -> Result<FitResult, FitError> {
     let ms = model.saturation_magnetization_a_per_m;
     let fit_options = FitOptions {
         total_mass_at_most: if options.fit.reversible.is_piecewise() {
@@ -478,13 +572,24 @@ pub fn identify_masses(
         },
         ..options.fit
     };
-    let result = fit(
-        &grid,
-        &experiments,
+    fit(
+        grid,
+        experiments,
         Some(&base.preisach.weights_a_per_m),
         &fit_options,
-    )?;
+    )
+}
 
+/// Each record's report: its conversion and how the identified model predicts it.
+fn file_reports(
+    dataset: &Dataset,
+    records: &[Record],
+    rows_below_floor: &[usize],
+    grid: &Grid,
+    result: &FitResult,
+    options: &MassOptions,
+    model: &StaticModel,
+) -> Vec<FileReport> {
     let generic = PreisachModel {
         format: FORMAT.into(),
         input_column: "h_a_per_m".into(),
@@ -501,34 +606,46 @@ pub fn identify_masses(
             .reversible
             .is_piecewise()
             .then(|| result.reversible_slopes.clone()),
-        initial_state: initials
+        initial_state: records
             .first()
-            .copied()
+            .map(|r| r.initial)
             .unwrap_or(StartState::NegativeSaturation),
         provenance: Value::Null,
     };
-    let mut files = Vec::new();
-    for k in 0..fields.len() {
-        let m_pred = generic.predict(&fields[k], initials[k]);
-        let y_pred: Vec<f64> = m_pred.iter().map(|&m| model.displacement_m(m)).collect();
-        let meas = &dataset.measurements[k];
-        files.push(FileReport {
-            file: labels[k].clone(),
-            samples: meas.len(),
-            clipped_negative: conversions[k].clipped_negative,
-            above_stroke: conversions[k].above_stroke,
-            sign_changes: conversions[k].sign_changes,
-            noise_m: noises_m[k],
-            fit_floor_m: floors_m[k],
-            rows_below_floor: rows_below_floor[k],
-            nrmse_magnetization: nrmse(&m_pred, &conversions[k].m_a_per_m, None),
-            nrmse_displacement: nrmse(&y_pred, &displacements[k], None),
-            h_a_per_m: fields[k].clone(),
-            m_measured_a_per_m: conversions[k].m_a_per_m.clone(),
-            m_predicted_a_per_m: m_pred,
-        });
-    }
+    records
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let m_pred = generic.predict(&r.field, r.initial);
+            let y_pred: Vec<f64> = m_pred.iter().map(|&m| model.displacement_m(m)).collect();
+            FileReport {
+                file: r.label.clone(),
+                samples: dataset.measurements[k].len(),
+                clipped_negative: r.conversion.clipped_negative,
+                above_stroke: r.conversion.above_stroke,
+                sign_changes: r.conversion.sign_changes,
+                noise_m: r.noise_m,
+                fit_floor_m: r.floor_m,
+                rows_below_floor: rows_below_floor[k],
+                nrmse_magnetization: nrmse(&m_pred, &r.conversion.m_a_per_m, None),
+                nrmse_displacement: nrmse(&y_pred, &r.displacement_m, None),
+                h_a_per_m: r.field.clone(),
+                m_measured_a_per_m: r.conversion.m_a_per_m.clone(),
+                m_predicted_a_per_m: m_pred,
+            }
+        })
+        .collect()
+}
 
+/// The base file with the identified masses (and reversible part) and the provenance, validated.
+fn identified_params(
+    (dataset, base, base_name): (&Dataset, &ActuatorParams, &str),
+    options: &MassOptions,
+    result: &FitResult,
+    files: &[FileReport],
+    choices: &[Value],
+    sensor_offset_m: Option<f64>,
+) -> Result<ActuatorParams, FitError> {
     let mut params = base.clone();
     params.preisach.weights_a_per_m = result.weights.clone();
     params.preisach.reversible_susceptibility = options
@@ -536,7 +653,7 @@ pub fn identify_masses(
         .reversible
         .is_piecewise()
         .then(|| result.reversible_slopes.clone());
-    let mut prov = provenance(dataset, base, base_name, options, &result, &files, &choices);
+    let mut prov = provenance(dataset, base, base_name, options, result, files, choices);
     prov.details.insert(
         "sensor_offset_m".into(),
         json!({
@@ -553,11 +670,7 @@ pub fn identify_masses(
     params
         .validate("identified parameters")
         .map_err(|e| FitError(format!("the identified parameters do not validate: {e}")))?;
-    Ok(MassIdentification {
-        params,
-        fit: result,
-        files,
-    })
+    Ok(params)
 }
 
 fn provenance(

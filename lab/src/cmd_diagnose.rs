@@ -3,14 +3,13 @@
 //! added (library: `maglab-diagnose::diagnosis`). Writes `diagnosis.json`, `report.md` and the
 //! plots (`error_vs_frequency`, `loops_worst`, `ranking`, `residual_spectrum`, PNG + SVG).
 
-use crate::plot::{Figure, Panel, Series, PALETTE};
+use crate::plot_diagnose;
 use anyhow::{anyhow, Context, Result};
 use clap::Args as ClapArgs;
 use indicatif::{ProgressBar, ProgressStyle};
-use maglab_diagnose::diagnosis::{diagnose, DiagnoseOptions, DiagnosisRun};
-use maglab_signal::spectrum;
+use maglab_diagnose::diagnosis::{diagnose, DiagnoseOptions, Diagnosis, DiagnosisRun};
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `maglab diagnose`.
 #[derive(Debug, ClapArgs)]
@@ -71,7 +70,7 @@ pub fn run(args: &Args) -> Result<()> {
     let json_path = args.out.join("diagnosis.json");
     std::fs::write(&json_path, json)
         .with_context(|| format!("cannot write {}", json_path.display()))?;
-    let plots = plots(&run, &args.out)?;
+    let plots = plot_diagnose::write_all(&run, &args.out)?;
     let md = report(&run, args, &plots);
     let md_path = args.out.join("report.md");
     std::fs::write(&md_path, md).with_context(|| format!("cannot write {}", md_path.display()))?;
@@ -150,9 +149,20 @@ fn um(v: f64) -> String {
     format!("{:.3}", v * 1e6)
 }
 
+/// `report.md`: every section in order.
 fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
-    let d = &run.diagnosis;
     let mut s = String::new();
+    verdict_section(&mut s, run, args);
+    estimated_section(&mut s, &run.diagnosis);
+    where_section(&mut s, &run.diagnosis);
+    candidates_section(&mut s, &run.diagnosis);
+    plots_section(&mut s, plots);
+    s
+}
+
+/// The report's section: the verdict, why, and the parameter file's warnings.
+fn verdict_section(s: &mut String, run: &DiagnosisRun, args: &Args) {
+    let d = &run.diagnosis;
     let _ = writeln!(s, "# Sim-to-real gap diagnosis\n");
     let _ = writeln!(
         s,
@@ -184,6 +194,10 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
         }
         let _ = writeln!(s);
     }
+}
+
+/// The report's section: what was estimated (not effects), the refit and the criterion.
+fn estimated_section(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "## Estimated, not effects\n");
     for e in &d.nuisance.estimated {
         let _ = writeln!(s, "- {e}");
@@ -271,6 +285,10 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
                 String::new()
             }
     );
+}
+
+/// The report's section: where the parameter file's model disagrees.
+fn where_section(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "## Where\n");
     for line in &d.where_.summary {
         let _ = writeln!(s, "- {line}");
@@ -304,6 +322,10 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
         um(w.early_rms_m),
         um(w.late_rms_m)
     );
+}
+
+/// The report's section: every candidate's held-out scores and the second stage.
+fn candidates_section(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "## Candidates (held-out experiments)\n");
     let _ = writeln!(
         s,
@@ -357,212 +379,12 @@ fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
         .map(|e| e.name.as_str())
         .collect();
     let _ = writeln!(s, "\nHeld-out experiments: {}.\n", held.join(", "));
+}
+
+/// The report's section: the plots.
+fn plots_section(s: &mut String, plots: &[&str]) {
     let _ = writeln!(s, "## Plots\n");
     for p in plots {
         let _ = writeln!(s, "![{p}]({p}.png)\n");
     }
-    s
-}
-
-fn plots(run: &DiagnosisRun, out: &Path) -> Result<Vec<&'static str>> {
-    let d = &run.diagnosis;
-    let label = if d.verdict == "none" || d.verdict == "unexplained" {
-        format!(
-            "best candidate ({})",
-            d.ranking.first().map(|c| c.effect.as_str()).unwrap_or("-")
-        )
-    } else {
-        format!("with {}", d.verdict)
-    };
-    let mut names = Vec::new();
-    // 1. Error vs frequency.
-    if let Some(best) = d.ranking.first() {
-        let mut panel = Panel::new(
-            "RMS residual by frequency band",
-            "frequency (Hz)",
-            "RMS residual (µm)",
-        );
-        panel.series.push(Series {
-            label: Some("nominal, refitted".into()),
-            points: best
-                .per_band
-                .iter()
-                .map(|b| (b.frequency_hz, b.before_m * 1e6))
-                .collect(),
-            color: PALETTE[0],
-            width: 2,
-        });
-        panel.series.push(Series {
-            label: Some(label.clone()),
-            points: best
-                .per_band
-                .iter()
-                .map(|b| (b.frequency_hz, b.after_m * 1e6))
-                .collect(),
-            color: PALETTE[2],
-            width: 2,
-        });
-        panel.series.push(Series {
-            label: Some("noise level".into()),
-            points: best
-                .per_band
-                .iter()
-                .map(|b| (b.frequency_hz, d.noise_m * 1e6))
-                .collect(),
-            color: PALETTE[7],
-            width: 1,
-        });
-        for b in best.per_band.iter().filter(|b| b.held_out) {
-            panel.series.push(Series {
-                label: None,
-                points: vec![(b.frequency_hz, 0.0), (b.frequency_hz, b.before_m * 1e6)],
-                color: PALETTE[6],
-                width: 1,
-            });
-        }
-        panel.y_range = Some((
-            0.0,
-            best.per_band
-                .iter()
-                .map(|b| b.before_m.max(b.after_m))
-                .fold(d.noise_m, f64::max)
-                * 1.15e6,
-        ));
-        Figure {
-            panels: vec![panel],
-            rows: 1,
-            cols: 1,
-            size_px: (900, 520),
-        }
-        .write(&out.join("error_vs_frequency"))?;
-        names.push("error_vs_frequency");
-    }
-    // 2. Loops at the worst experiment.
-    let worst = d
-        .where_
-        .experiments
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1.relative_rms.total_cmp(&b.1.relative_rms))
-        .map(|(k, _)| k)
-        .unwrap_or(0);
-    let t = &run.traces[worst];
-    let info = &d.experiments[worst];
-    let period = (t.rate_hz / info.fundamental_hz).round() as usize;
-    let n = t.current_a.len();
-    // The last full period plus its closing sample, so the loop is drawn closed.
-    let start = n.saturating_sub((period + 1).clamp(2, n));
-    let mut panel = Panel::new(
-        &format!("Loops at {:.0} Hz ({})", info.fundamental_hz, t.name),
-        "current (A)",
-        "displacement (µm)",
-    );
-    for (name, ys, color) in [
-        ("measured", &t.measured_m, PALETTE[0]),
-        ("nominal", &t.nominal_m, PALETTE[1]),
-        (label.as_str(), &t.augmented_m, PALETTE[2]),
-    ] {
-        panel.series.push(Series {
-            label: Some(name.to_string()),
-            points: (start..n).map(|k| (t.current_a[k], ys[k] * 1e6)).collect(),
-            color,
-            width: 2,
-        });
-    }
-    Figure {
-        panels: vec![panel],
-        rows: 1,
-        cols: 1,
-        size_px: (900, 620),
-    }
-    .write(&out.join("loops_worst"))?;
-    names.push("loops_worst");
-    // 3. Ranking.
-    let mut panel = Panel::new(
-        "Held-out RMS residual per candidate (nominal: black line)",
-        "candidate rank",
-        "held-out RMS (µm)",
-    );
-    if let Some(first) = d.ranking.first() {
-        let nominal = first.held_out_rms_before_m * 1e6;
-        panel.series.push(Series {
-            label: Some("nominal".into()),
-            points: vec![(0.4, nominal), (d.ranking.len() as f64 + 0.6, nominal)],
-            color: PALETTE[0],
-            width: 2,
-        });
-        for (k, c) in d.ranking.iter().enumerate() {
-            panel.series.push(Series {
-                label: Some(format!("{}. {}", k + 1, c.effect)),
-                points: vec![
-                    (k as f64 + 1.0, 0.0),
-                    (k as f64 + 1.0, c.held_out_rms_after_m * 1e6),
-                ],
-                color: PALETTE[1 + k % 7],
-                width: 18,
-            });
-        }
-        panel.x_range = Some((0.4, d.ranking.len() as f64 + 0.6));
-        panel.y_range = Some((
-            0.0,
-            nominal.max(
-                d.ranking
-                    .iter()
-                    .map(|c| c.held_out_rms_after_m * 1e6)
-                    .fold(0.0, f64::max),
-            ) * 1.5,
-        ));
-        panel.legend = plotters::prelude::SeriesLabelPosition::UpperRight;
-    }
-    Figure {
-        panels: vec![panel],
-        rows: 1,
-        cols: 1,
-        size_px: (900, 560),
-    }
-    .write(&out.join("ranking"))?;
-    names.push("ranking");
-    // 4. Residual spectrum of the worst experiment.
-    let s0 = info.settle_samples;
-    let resid = |ys: &[f64]| -> Vec<f64> {
-        t.measured_m[s0..]
-            .iter()
-            .zip(&ys[s0..])
-            .map(|(a, b)| a - b)
-            .collect()
-    };
-    let mut panel = Panel::new(
-        &format!(
-            "Residual spectrum at {:.0} Hz ({})",
-            info.fundamental_hz, t.name
-        ),
-        "frequency (Hz)",
-        "log10 amplitude (m)",
-    );
-    for (name, ys, color) in [
-        ("nominal", &t.nominal_m, PALETTE[1]),
-        (label.as_str(), &t.augmented_m, PALETTE[2]),
-    ] {
-        let spec = spectrum::amplitude_spectrum(&resid(ys), t.rate_hz, true);
-        panel.series.push(Series {
-            label: Some(name.to_string()),
-            points: spec
-                .iter()
-                .skip(1)
-                .map(|&(f, a)| (f, a.max(1e-14).log10()))
-                .collect(),
-            color,
-            width: 1,
-        });
-    }
-    panel.legend = plotters::prelude::SeriesLabelPosition::UpperRight;
-    Figure {
-        panels: vec![panel],
-        rows: 1,
-        cols: 1,
-        size_px: (900, 520),
-    }
-    .write(&out.join("residual_spectrum"))?;
-    names.push("residual_spectrum");
-    Ok(names)
 }

@@ -142,7 +142,53 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         filter: filter(args.fit_rows.as_deref())?,
     };
     let table = read_columns(&args.file, &spec)?;
-    let range = match &args.levels_range {
+    let range = levels_range(args)?;
+    let (options, auto_smoothness) = fit_options(args)?;
+    let initial = initial_state(args, &table)?;
+    let lines = LineChoice::parse(&args.grid_lines).map_err(|e| anyhow!("--grid-lines: {e}"))?;
+    let (model, result) = fit_table(
+        &table,
+        &spec,
+        range,
+        args.margin,
+        initial,
+        lines,
+        auto_smoothness,
+        &options,
+    )?;
+    print_validation(&model);
+    let json = model.to_json_pretty();
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
+    }
+    std::fs::write(&args.output, json)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let (predictions, score) = predict_table(&model, &table);
+    print_fit(&table, &spec, &model, &result, score, &options, initial);
+    println!("wrote {}", args.output.display());
+    let map = WeightMap {
+        title: format!("Preisach masses, {}", args.file.display()),
+        axis_label: args.input_col.clone(),
+        axis_scale: 1.0,
+        h_min: model.h_min,
+        h_max: model.h_max,
+        weights: &model.weights,
+        outlined: &result.unexcited,
+    };
+    for p in map.write(&args.plot_dir.join("weights"))? {
+        println!("wrote {}", p.display());
+    }
+    for p in loops_figure(&table, &predictions, &spec, "fitted")?
+        .write(&args.plot_dir.join("fit-loops"))?
+    {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+/// `--levels-range LO..HI`, if given.
+fn levels_range(args: &FitArgs) -> Result<Option<(f64, f64)>> {
+    Ok(match &args.levels_range {
         None => None,
         Some(text) => {
             let (lo, hi) = text
@@ -161,7 +207,11 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
             }
             Some((lo, hi))
         }
-    };
+    })
+}
+
+/// The fit's settings, and whether the smoothness is chosen by validation (`auto`).
+fn fit_options(args: &FitArgs) -> Result<(FitOptions, bool)> {
     let (smoothness, auto_smoothness) = match args.smoothness.as_str() {
         "auto" => (maglab_identify::model::SMOOTHNESS_CANDIDATES[1], true),
         text => (
@@ -188,8 +238,13 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         row_stride: args.row_stride,
         total_mass_at_most: None,
     };
-    let initial = if args.initial == "auto" {
-        let (chosen, why) = auto_initial(&table);
+    Ok((options, auto_smoothness))
+}
+
+/// `--initial`: given, or chosen from the table (`auto`, printed).
+fn initial_state(args: &FitArgs, table: &Table) -> Result<StartState> {
+    Ok(if args.initial == "auto" {
+        let (chosen, why) = auto_initial(table);
         println!("initial state auto: {} ({why})", chosen.name());
         chosen
     } else {
@@ -199,18 +254,11 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
                  demagnetized-at-first-input)"
             )
         })?
-    };
-    let lines = LineChoice::parse(&args.grid_lines).map_err(|e| anyhow!("--grid-lines: {e}"))?;
-    let (model, result) = fit_table(
-        &table,
-        &spec,
-        range,
-        args.margin,
-        initial,
-        lines,
-        auto_smoothness,
-        &options,
-    )?;
+    })
+}
+
+/// The validation's scores (grid lines and smoothness chosen on held-back fit rows), if it ran.
+fn print_validation(model: &PreisachModel) {
     if let Some(scores) = model.provenance["validation"].as_array() {
         let text: Vec<String> = scores
             .iter()
@@ -232,13 +280,19 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
             text.join("; ")
         );
     }
-    let json = model.to_json_pretty();
-    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)?;
-    }
-    std::fs::write(&args.output, json)
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
-    let (predictions, score) = predict_table(&model, &table);
+}
+
+/// What the fit found: the table, the grid, the residual, the affine or reversible part, the
+/// unexcited cells, the samples outside the grid.
+fn print_fit(
+    table: &Table,
+    spec: &ColumnSpec,
+    model: &PreisachModel,
+    result: &maglab_identify::fit::FitResult,
+    score: Option<f64>,
+    options: &FitOptions,
+    initial: StartState,
+) {
     println!(
         "file {}: {} experiments, {} rows, fit rows ({}): {}",
         table.path.display(),
@@ -316,25 +370,6 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
             println!("{label}: {n} samples outside the grid (memory saturated there)");
         }
     }
-    println!("wrote {}", args.output.display());
-    let map = WeightMap {
-        title: format!("Preisach masses, {}", args.file.display()),
-        axis_label: args.input_col.clone(),
-        axis_scale: 1.0,
-        h_min: model.h_min,
-        h_max: model.h_max,
-        weights: &model.weights,
-        outlined: &result.unexcited,
-    };
-    for p in map.write(&args.plot_dir.join("weights"))? {
-        println!("wrote {}", p.display());
-    }
-    for p in loops_figure(&table, &predictions, &spec, "fitted")?
-        .write(&args.plot_dir.join("fit-loops"))?
-    {
-        println!("wrote {}", p.display());
-    }
-    Ok(())
 }
 
 fn loops_figure(

@@ -24,6 +24,7 @@ mod cmd_track;
 mod params_io;
 mod plot;
 mod plot_bars;
+mod plot_diagnose;
 mod plot_identify;
 mod plot_preisach;
 

@@ -301,6 +301,25 @@ pub fn thermal_time_constant_min_s(nominal: &Nominal) -> f64 {
     2.0 * nominal.slowest_period_s
 }
 
+/// A parameter's spec in one line (the table of [`effect_parameters`]).
+const fn spec(
+    name: &'static str,
+    lo: f64,
+    hi: f64,
+    log: bool,
+    stage: Stage,
+    edge: Edge,
+) -> ParamSpec {
+    ParamSpec {
+        name,
+        lo,
+        hi,
+        log,
+        stage,
+        edge,
+    }
+}
+
 /// The effect's own parameters.
 pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
     let f0 = nominal.resonance_hz;
@@ -310,172 +329,53 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
     use Stage::{Electro as A, Mech as B};
     match effect {
         EffectName::EddyFrequencyDependence => vec![
-            ParamSpec {
-                name: "hf_to_dc_ratio",
-                lo: 1.0 / 16.0,
-                hi: 16.0,
-                log: true,
-                stage: A,
-                edge: Edge::Both,
-            },
-            ParamSpec {
-                name: "corner_hz",
-                lo: 10.0,
-                hi: 5000.0,
-                log: true,
-                stage: A,
-                edge: Edge::None,
-            },
-            ParamSpec {
-                name: "anchor",
-                lo: 0.0,
-                hi: 1.0,
-                log: false,
-                stage: A,
-                edge: Edge::None,
-            },
+            spec("hf_to_dc_ratio", 1.0 / 16.0, 16.0, true, A, Edge::Both),
+            spec("corner_hz", 10.0, 5000.0, true, A, Edge::None),
+            spec("anchor", 0.0, 1.0, false, A, Edge::None),
         ],
         EffectName::AmplifierBandwidth => vec![
-            ParamSpec {
-                name: "natural_hz",
-                lo: 50.0,
-                hi: 50_000.0,
-                log: true,
-                stage: A,
-                edge: Edge::Low,
-            },
-            ParamSpec {
-                name: "damping_ratio",
-                lo: 0.3,
-                hi: 3.0,
-                log: true,
-                stage: A,
-                edge: Edge::None,
-            },
+            spec("natural_hz", 50.0, 50_000.0, true, A, Edge::Low),
+            spec("damping_ratio", 0.3, 3.0, true, A, Edge::None),
         ],
         EffectName::SensorDynamics => vec![
-            ParamSpec {
-                name: "natural_hz",
-                lo: 100.0,
-                hi: 50_000.0,
-                log: true,
-                stage: B,
-                edge: Edge::Low,
-            },
-            ParamSpec {
-                name: "damping_ratio",
-                lo: 0.3,
-                hi: 3.0,
-                log: true,
-                stage: B,
-                edge: Edge::None,
-            },
-            ParamSpec {
-                name: "delay_s",
-                lo: 0.0,
-                hi: 1e-3,
-                log: false,
-                stage: B,
-                edge: Edge::High,
-            },
+            spec("natural_hz", 100.0, 50_000.0, true, B, Edge::Low),
+            spec("damping_ratio", 0.3, 3.0, true, B, Edge::None),
+            spec("delay_s", 0.0, 1e-3, false, B, Edge::High),
         ],
         EffectName::ReversibleMagnetization => vec![
-            ParamSpec {
-                name: "susceptibility",
-                lo: 0.0,
-                hi: 30.0,
-                log: false,
-                stage: A,
-                edge: Edge::High,
-            },
-            ParamSpec {
-                name: "saturation_field_a_per_m",
-                lo: h_s_min,
-                hi: 50.0 * h_s_min,
-                log: true,
-                stage: A,
-                edge: Edge::Low,
-            },
-            ParamSpec {
-                name: "shape",
-                lo: 0.7,
-                hi: 4.0,
-                log: true,
-                stage: A,
-                edge: Edge::None,
-            },
+            spec("susceptibility", 0.0, 30.0, false, A, Edge::High),
+            spec(
+                "saturation_field_a_per_m",
+                h_s_min,
+                50.0 * h_s_min,
+                true,
+                A,
+                Edge::Low,
+            ),
+            spec("shape", 0.7, 4.0, true, A, Edge::None),
         ],
         EffectName::ThermalDrift => vec![
             // Below two periods of the slowest excitation the candidate would follow the
             // excitation itself (the I² ripple passes with less than 12x attenuation) and become a
             // static output nonlinearity: that is the range's physical limit, read from the data
             // (a small coil's time constant is well under a second, a large one's minutes).
-            ParamSpec {
-                name: "time_constant_s",
-                lo: thermal_time_constant_min_s(nominal),
-                hi: 1000.0,
-                log: true,
-                stage: B,
-                edge: Edge::Low,
-            },
-            ParamSpec {
-                name: "lag_s",
-                lo: 0.01,
-                hi: 100.0,
-                log: true,
-                stage: B,
-                edge: Edge::None,
-            },
-            ParamSpec {
-                name: "gain_loss_per_a2",
-                lo: -5.0,
-                hi: 5.0,
-                log: false,
-                stage: B,
-                edge: Edge::Both,
-            },
-            ParamSpec {
-                name: "strain_per_a2",
-                lo: -5.0,
-                hi: 5.0,
-                log: false,
-                stage: B,
-                edge: Edge::Both,
-            },
+            spec(
+                "time_constant_s",
+                thermal_time_constant_min_s(nominal),
+                1000.0,
+                true,
+                B,
+                Edge::Low,
+            ),
+            spec("lag_s", 0.01, 100.0, true, B, Edge::None),
+            spec("gain_loss_per_a2", -5.0, 5.0, false, B, Edge::Both),
+            spec("strain_per_a2", -5.0, 5.0, false, B, Edge::Both),
         ],
         EffectName::DeltaEEffect => vec![
-            ParamSpec {
-                name: "stiffness_m2",
-                lo: -0.8,
-                hi: 10.0,
-                log: false,
-                stage: B,
-                edge: Edge::Both,
-            },
-            ParamSpec {
-                name: "stiffness_m4",
-                lo: -10.0,
-                hi: 10.0,
-                log: false,
-                stage: B,
-                edge: Edge::Both,
-            },
-            ParamSpec {
-                name: "stiffness_m6",
-                lo: -10.0,
-                hi: 10.0,
-                log: false,
-                stage: B,
-                edge: Edge::Both,
-            },
-            ParamSpec {
-                name: "stiffness_stress",
-                lo: -10.0,
-                hi: 10.0,
-                log: false,
-                stage: B,
-                edge: Edge::Both,
-            },
+            spec("stiffness_m2", -0.8, 10.0, false, B, Edge::Both),
+            spec("stiffness_m4", -10.0, 10.0, false, B, Edge::Both),
+            spec("stiffness_m6", -10.0, 10.0, false, B, Edge::Both),
+            spec("stiffness_stress", -10.0, 10.0, false, B, Edge::Both),
         ],
         EffectName::MechanicalLoad => vec![
             // Both ends are physical limits. At the low end the load no longer loads the rod:
@@ -483,30 +383,9 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
             // second-order low-pass on the reading — the sensor's mount, the form of
             // `sensor_dynamics` — and a load fit that runs there is a sensor lag in disguise
             // (seen with identified files, f0 free x/ 2; README, identify -> diagnose, b390fa3).
-            ParamSpec {
-                name: "mass_ratio",
-                lo: 0.02,
-                hi: 10.0,
-                log: true,
-                stage: B,
-                edge: Edge::Both,
-            },
-            ParamSpec {
-                name: "coupling_hz",
-                lo: 0.5 * f0,
-                hi: 20.0 * f0,
-                log: true,
-                stage: B,
-                edge: Edge::Low,
-            },
-            ParamSpec {
-                name: "damping_ratio",
-                lo: 0.02,
-                hi: 3.0,
-                log: true,
-                stage: B,
-                edge: Edge::None,
-            },
+            spec("mass_ratio", 0.02, 10.0, true, B, Edge::Both),
+            spec("coupling_hz", 0.5 * f0, 20.0 * f0, true, B, Edge::Low),
+            spec("damping_ratio", 0.02, 3.0, true, B, Edge::None),
         ],
     }
 }

@@ -359,13 +359,26 @@ impl ActuatorParams {
         text
     }
 
-    /// Checks every constraint the core relies on.
+    /// Checks every constraint the core relies on (errors name `source_name`, the field and the
+    /// reason).
     pub fn validate(&self, source_name: &str) -> Result<(), ParamsError> {
         let err = |field: &str, reason: String| ParamsError {
             source_name: source_name.to_string(),
             field: field.to_string(),
             reason,
         };
+        self.check_scalars(&err)?;
+        self.check_band_and_amplifier(&err)?;
+        self.check_sensor(&err)?;
+        self.check_feedback(&err)?;
+        self.check_grid(&err)?;
+        self.check_reversible(&err)?;
+        self.check_masses(&err)?;
+        Ok(())
+    }
+
+    /// Checks the schema version; every scalar positive, non-negative or finite as it must be.
+    fn check_scalars(&self, err: &dyn Fn(&str, String) -> ParamsError) -> Result<(), ParamsError> {
         if self.schema_version != SCHEMA_VERSION {
             return Err(err(
                 "schema_version",
@@ -443,6 +456,15 @@ impl ActuatorParams {
         for (field, value) in finite {
             check_finite(field, value).map_err(|r| err(field, r))?;
         }
+        Ok(())
+    }
+
+    /// Checks the trajectory band within the stroke; the amplifier can hold and slew the current limit.
+    fn check_band_and_amplifier(
+        &self,
+        err: &dyn Fn(&str, String) -> ParamsError,
+    ) -> Result<(), ParamsError> {
+        let a = &self.actuator;
         let t = &self.trajectory;
         if t.displacement_min_m >= t.displacement_max_m {
             return Err(err(
@@ -490,6 +512,12 @@ impl ActuatorParams {
                 ),
             ));
         }
+        Ok(())
+    }
+
+    /// Checks the sensor's range, its valid band inside it and the trajectory band inside that, its delay.
+    fn check_sensor(&self, err: &dyn Fn(&str, String) -> ParamsError) -> Result<(), ParamsError> {
+        let t = &self.trajectory;
         let sn = &self.sensor;
         if !(8..=24).contains(&sn.adc_bits) {
             return Err(err(
@@ -553,6 +581,12 @@ impl ActuatorParams {
                 ),
             ));
         }
+        Ok(())
+    }
+
+    /// Checks the feedback gains, and the resonance below the Nyquist rate.
+    fn check_feedback(&self, err: &dyn Fn(&str, String) -> ParamsError) -> Result<(), ParamsError> {
+        let a = &self.actuator;
         let fb = &self.control.feedback;
         let rate = self.control.sample_rate_hz;
         let in_range = |field: &str, v: f64, lo: f64, hi: f64, closed_hi: bool| {
@@ -626,6 +660,11 @@ impl ActuatorParams {
             ));
         }
 
+        Ok(())
+    }
+
+    /// Checks the Preisach grid: its range and lines.
+    fn check_grid(&self, err: &dyn Fn(&str, String) -> ParamsError) -> Result<(), ParamsError> {
         let p = &self.preisach;
         for (field, value) in [
             ("preisach.h_min_a_per_m", p.h_min_a_per_m),
@@ -690,6 +729,15 @@ impl ActuatorParams {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Checks the reversible part's susceptibilities.
+    fn check_reversible(
+        &self,
+        err: &dyn Fn(&str, String) -> ParamsError,
+    ) -> Result<(), ParamsError> {
+        let p = &self.preisach;
         if let Some(chi) = &p.reversible_susceptibility {
             let field = "preisach.reversible_susceptibility";
             if chi.len() != p.levels {
@@ -726,6 +774,12 @@ impl ActuatorParams {
                 }
             }
         }
+        Ok(())
+    }
+
+    /// Checks the level count and the cell masses.
+    fn check_masses(&self, err: &dyn Fn(&str, String) -> ParamsError) -> Result<(), ParamsError> {
+        let p = &self.preisach;
         let implied_levels = levels_for_cells(p.weights_a_per_m.len());
         if p.levels != PREISACH_LEVELS {
             let implied = match implied_levels {

@@ -490,6 +490,60 @@ mod firmware {
             defmt::error!("the link does not take bytes");
             semihosting::exit(EXIT_LINK_FAULT)
         }
+        // After a link fault the firmware is its own clock until the ramp to 0 A has ended
+        // (bounded: the ramp from the current limit takes `limit / max_step` ticks).
+        let ramp_ticks = {
+            let l = control.limiter();
+            libm::ceilf(l.limit_a() / l.max_step_a()) as u32 + 2
+        };
+        let run = Run {
+            ticks,
+            ramp_ticks,
+            measure,
+            local,
+        };
+        let outcome = lock_step(&mut uart, &mut drain, &run);
+        finish(uart, drain, outcome)
+    }
+
+    /// The run's length and mode.
+    struct Run {
+        /// Ticks of the run (conditioning, tracking or the programme).
+        ticks: u32,
+        /// Ticks the ramp to 0 A takes after a link fault.
+        ramp_ticks: u32,
+        /// Measurement mode.
+        measure: bool,
+        /// The firmware plays the programme itself.
+        local: bool,
+    }
+
+    /// What the lock-step loop saw.
+    struct Outcome {
+        tick: u32,
+        link_fault_at: Option<u32>,
+        sensor_fault_at: Option<u32>,
+        check_failed: bool,
+        min_instr: u16,
+        max_instr: u16,
+        ramp_done: bool,
+        fell_back: bool,
+    }
+
+    /// The lock-step loop: per tick, the programme's current (streamed measurement) and the
+    /// sample from the plant, the control interrupt, the command frame back; a missing frame is
+    /// a link fault, after which the firmware ticks on its own until the coil is at 0 A.
+    fn lock_step(
+        uart: &mut CmsdkUart,
+        drain: &mut Option<RecordDrain<'static>>,
+        run: &Run,
+    ) -> Outcome {
+        let Run {
+            ticks,
+            ramp_ticks,
+            measure,
+            local,
+        } = *run;
         let mut assembler = SampleAssembler::new();
         let mut link_fault_at: Option<u32> = None;
         let mut sensor_fault_at: Option<u32> = None;
@@ -498,22 +552,16 @@ mod firmware {
         let mut ramp_done = false;
         let mut fell_back = false;
         let mut tick: u32 = 0;
-        // After a link fault the firmware is its own clock until the ramp to 0 A has ended
-        // (bounded: the ramp from the current limit takes `limit / max_step` ticks).
-        let ramp_ticks = {
-            let l = control.limiter();
-            libm::ceilf(l.limit_a() / l.max_step_a()) as u32 + 2
-        };
         while tick < ticks || (link_fault_at.is_some() && !ramp_done && tick < ticks + ramp_ticks) {
             let seq = tick as u16;
             if measure && !local && link_fault_at.is_none() {
-                match receive(&mut uart, &mut assembler, seq, ProgrammeFrame::decode) {
+                match receive(uart, &mut assembler, seq, ProgrammeFrame::decode) {
                     Ok(p) => PROGRAMME_BITS.store(p.current_a.to_bits(), Ordering::Relaxed),
                     Err(()) => link_fault_at = Some(tick),
                 }
             }
             let sample = if link_fault_at.is_none() {
-                match receive(&mut uart, &mut assembler, seq, SampleFrame::decode) {
+                match receive(uart, &mut assembler, seq, SampleFrame::decode) {
                     Ok(frame) => Some(frame.sample),
                     Err(()) => {
                         link_fault_at = Some(tick);
@@ -548,7 +596,7 @@ mod firmware {
                     ramp_done |= cmd.value == 0.0;
                 }
             }
-            if let Some(d) = &mut drain {
+            if let Some(d) = drain {
                 log_batches(d, false);
             }
             if link_fault_at.is_none() {
@@ -565,6 +613,30 @@ mod firmware {
             }
             tick += 1;
         }
+        Outcome {
+            tick,
+            link_fault_at,
+            sensor_fault_at,
+            check_failed,
+            min_instr,
+            max_instr,
+            ramp_done,
+            fell_back,
+        }
+    }
+
+    /// Ends the run: the record's last batches, the counts, the exit status (docs/hil.md).
+    fn finish(mut uart: CmsdkUart, mut drain: Option<RecordDrain<'static>>, o: Outcome) -> ! {
+        let Outcome {
+            tick,
+            link_fault_at,
+            sensor_fault_at,
+            mut check_failed,
+            min_instr,
+            max_instr,
+            ramp_done,
+            fell_back,
+        } = o;
         NVIC::mask(Timer0Irq);
         // SAFETY: the interrupt is masked: thread mode is APP's only user now.
         let spi_timeouts = unsafe { APP.get_mut() }.map_or(0, |a| a.spi_timeouts);

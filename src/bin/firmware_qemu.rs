@@ -570,29 +570,7 @@ mod firmware {
             defmt::error!("cannot open the capture file on the host");
             semihosting::exit(6)
         };
-        // Calibration: 1024 extra instructions between the two measurements.
-        let one = time_nops_1024();
-        let two = time_nops_2048();
-        let diff = two.wrapping_sub(one);
-        defmt::info!(
-            "calibration: 1024 nops = {=u32} SysTick ticks (expect 26214 = 1024 x 25.6)",
-            diff
-        );
-        // The two SysTick reads around a measured block: what 1024 nops cost beyond 1024 x 25.6.
-        let read_overhead_ticks = one.saturating_sub(26_214);
-        let (step_min, step_mean, step_max) = measure_model_step(read_overhead_ticks);
-        defmt::info!(
-            "model step (DynamicModel::step, 200 Hz sine, 2000 steps): instructions min {=u32} mean {=u32} max {=u32}",
-            step_min,
-            step_mean,
-            step_max
-        );
-        let mut cal = encode(PHASE_CALIBRATION, 0, 1024, diff, [0.0; 6], 0, 0);
-        cal[4..8].copy_from_slice(&1024u32.to_le_bytes());
-        if !file.write_all(&cal) {
-            semihosting::exit(6);
-        }
-
+        let read_overhead_ticks = calibrate(file);
         let control = match ControlLoop::new(&BAKED_MEASURE, &BAKED_PARAMETERS) {
             // The injection run checks the feedback-off fault path (ramp to 0 A); the
             // feedback's own fallback is checked on the virtual bench (`cargo xtask hil`).
@@ -695,6 +673,43 @@ mod firmware {
         }
         NVIC::mask(Timer0Irq);
         file.close();
+        report_and_exit()
+    }
+
+    /// The instruction counter's calibration (1024 extra `nop`s between two measurements, the
+    /// phase-0 record) and the model step's cost; returns the SysTick ticks the two reads around
+    /// a measured block cost.
+    fn calibrate(file: semihosting::HostFile) -> u32 {
+        // Calibration: 1024 extra instructions between the two measurements.
+        let one = time_nops_1024();
+        let two = time_nops_2048();
+        let diff = two.wrapping_sub(one);
+        defmt::info!(
+            "calibration: 1024 nops = {=u32} SysTick ticks (expect 26214 = 1024 x 25.6)",
+            diff
+        );
+        // The two SysTick reads around a measured block: what 1024 nops cost beyond 1024 x 25.6.
+        let read_overhead_ticks = one.saturating_sub(26_214);
+        let (step_min, step_mean, step_max) = measure_model_step(read_overhead_ticks);
+        defmt::info!(
+            "model step (DynamicModel::step, 200 Hz sine, 2000 steps): instructions min {=u32} mean {=u32} max {=u32}",
+            step_min,
+            step_mean,
+            step_max
+        );
+        let mut cal = encode(PHASE_CALIBRATION, 0, 1024, diff, [0.0; 6], 0, 0);
+        cal[4..8].copy_from_slice(&1024u32.to_le_bytes());
+        if !file.write_all(&cal) {
+            semihosting::exit(6);
+        }
+
+        read_overhead_ticks
+    }
+
+    /// The run's counts, and its exit status: 0 after the four phases with nothing dropped,
+    /// overrun, faulted or timed out and at least one merge; 7 after an injected sensor fault
+    /// ramped to 0 A within the slew limit; 3 otherwise.
+    fn report_and_exit() -> ! {
         let dropped = RING.dropped.load(Ordering::Relaxed);
         // SAFETY: TIMER0 is masked and stopped: thread mode is APP's only user now.
         let Some(app) = (unsafe { APP.get_mut() }) else {

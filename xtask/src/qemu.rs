@@ -312,15 +312,36 @@ fn write_tracking_csv(
     std::fs::write(&path, csv).with_context(|| format!("writing {}", path.display()))
 }
 
+/// Prints a line and appends it to the summary.
+macro_rules! say {
+    ($summary:expr, $($t:tt)*) => {{
+        let line = format!($($t)*);
+        println!("{line}");
+        $summary.push_str(&line);
+        $summary.push('\n');
+    }};
+}
+
 /// Runs the whole check; returns the summary text.
 pub fn check(ctx: &Ctx) -> Result<String> {
     let out_dir = ctx.root.join("out").join("qemu");
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let mut summary = String::new();
-    macro_rules! say {
-        ($($t:tt)*) => {{ let line = format!($($t)*); println!("{line}"); summary.push_str(&line); summary.push('\n'); }};
-    }
+    let (elf_path, elf, firmware_lines, records) = run_benchmark(ctx, &out_dir, &mut summary)?;
+    let (dynamic, stat) = check_instructions(&out_dir, &records, &firmware_lines, &mut summary)?;
+    check_replay_and_tracking(&out_dir, &dynamic, &stat, &mut summary)?;
+    check_sizes_and_fatal_paths(&elf_path, &elf, &out_dir, &mut summary)?;
+    no_panic_proof(ctx, &out_dir, &mut summary)?;
+    std::fs::write(out_dir.join("summary.txt"), &summary)?;
+    Ok(summary)
+}
 
+/// What the benchmark run left: the ELF's path and bytes, the decoded log, the capture records.
+type Benchmark = (PathBuf, Vec<u8>, Vec<String>, Vec<Record>);
+
+/// Steps 1-2: builds the benchmark image and runs it under QEMU; returns the ELF's path and
+/// bytes, the decoded log and the capture records.
+fn run_benchmark(ctx: &Ctx, out_dir: &Path, summary: &mut String) -> Result<Benchmark> {
     // 1. build
     let cmd = build(ctx, "board-mps2-an386");
     println!("$ {}", display(&cmd));
@@ -335,7 +356,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     // 2. run
     let capture_path = out_dir.join("qemu_capture.bin");
     let _ = std::fs::remove_file(&capture_path);
-    let mut cmd = qemu(&elf_path, &out_dir, None);
+    let mut cmd = qemu(&elf_path, out_dir, None);
     println!("$ (cd out/qemu && {})", display(&cmd));
     let started = std::time::Instant::now();
     let output = cmd
@@ -354,12 +375,24 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         "QEMU run exited with {code:?} (0 expected; 124 = timeout)"
     );
     say!(
+        summary,
         "qemu: exit status 0 after {:.1} s host time",
         started.elapsed().as_secs_f64()
     );
     let records =
         parse_records(&std::fs::read(&capture_path).context("reading the capture file")?)?;
 
+    Ok((elf_path, elf, firmware_lines, records))
+}
+
+/// Step 3: the instruction counter's calibration, each phase's instructions per interrupt
+/// against the goals, the capture CSV; returns the dynamic and static phases' records.
+fn check_instructions(
+    out_dir: &Path,
+    records: &[Record],
+    firmware_lines: &[String],
+    summary: &mut String,
+) -> Result<(Vec<Record>, Vec<Record>)> {
     // 3. instruction counts
     let cal = records
         .first()
@@ -371,6 +404,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     let ticks_per_instruction = cal.ticks as f64 / cal.index as f64;
     let expected_ticks = cal.index as f64 * TICKS_PER_INSTRUCTION;
     say!(
+        summary,
         "calibration: {} extra nops = {} SysTick ticks -> {:.4} ticks/instruction (expected {TICKS_PER_INSTRUCTION})",
         cal.index, cal.ticks, ticks_per_instruction
     );
@@ -407,8 +441,9 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     };
     let (d, s, n, m) = (instr(&dynamic), instr(&stat), instr(&naive), instr(&merge));
     let (e, r) = (instr(&everett), instr(&relay));
-    say!("instructions per interrupt (min / median / max):");
+    say!(summary, "instructions per interrupt (min / median / max):");
     say!(
+        summary,
         "  dynamic inverse, exact Preisach inverse: {:.0} / {:.0} / {:.0}  ({} interrupts)",
         d.0,
         d.1,
@@ -416,6 +451,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         dynamic.len()
     );
     say!(
+        summary,
         "  static inverse,  exact Preisach inverse: {:.0} / {:.0} / {:.0}  ({} interrupts)",
         s.0,
         s.1,
@@ -423,6 +459,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         stat.len()
     );
     say!(
+        summary,
         "  merge stress (dynamic inverse, staircase full, no trajectory step): {:.0} / {:.0} / {:.0}  ({} interrupts)",
         m.0,
         m.1,
@@ -430,6 +467,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         merge.len()
     );
     say!(
+        summary,
         "  dynamic inverse, naive (bisection):      {:.0} / {:.0} / {:.0}  ({} interrupts)",
         n.0,
         n.1,
@@ -437,6 +475,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         naive.len()
     );
     say!(
+        summary,
         "  dynamic inverse, Everett + bisection (openCFS-style): {:.0} / {:.0} / {:.0}  ({} interrupts)",
         e.0,
         e.1,
@@ -444,6 +483,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         everett.len()
     );
     say!(
+        summary,
         "  dynamic inverse, relay grid + bisection (5,050 relays): {:.0} / {:.0} / {:.0}  ({} interrupts)",
         r.0,
         r.1,
@@ -451,30 +491,33 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         relay.len()
     );
     say!(
+        summary,
         "  Everett bisection / ours: median {:.1}x, worst case {:.1}x",
         e.1 / d.1,
         e.2 / d.2
     );
     say!(
+        summary,
         "  relay grid / ours: median {:.0}x, worst case {:.0}x",
         r.1 / d.1,
         r.2 / d.2
     );
     say!(
+        summary,
         "  naive (strawman) / ours: median {:.0}x, worst case {:.0}x",
         n.1 / d.1,
         n.2 / d.2
     );
-    say!("dynamic-inverse interrupt by stage (2,000 steps in thread mode, instructions min / mean / max):");
+    say!(summary, "dynamic-inverse interrupt by stage (2,000 steps in thread mode, instructions min / mean / max):");
     for line in firmware_lines
         .iter()
         .filter_map(|l| l.split("stage ").nth(1))
     {
-        say!("  {line}");
+        say!(summary, "  {line}");
     }
     let overruns = records.iter().map(|r| r.overruns).max().unwrap_or(0);
     let faults = records.iter().filter(|r| r.flags & 8 != 0).count();
-    say!("overruns {overruns}, fault flags {faults}");
+    say!(summary, "overruns {overruns}, fault flags {faults}");
     ensure!(
         overruns == 0 && faults == 0,
         "overruns or faults in the QEMU run"
@@ -502,7 +545,11 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         );
     }
     std::fs::write(out_dir.join("capture.csv"), csv)?;
-    say!("wrote out/qemu/capture.csv ({} rows)", records.len() - 1);
+    say!(
+        summary,
+        "wrote out/qemu/capture.csv ({} rows)",
+        records.len() - 1
+    );
     ensure!(
         d.2 <= MAX_INSTRUCTIONS && s.2 <= MAX_INSTRUCTIONS,
         "worst case above {MAX_INSTRUCTIONS} instructions"
@@ -513,24 +560,38 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         m.2
     );
 
+    Ok((dynamic, stat))
+}
+
+/// Steps 4-5: the host replays the captured commands bit for bit, and the reference plant
+/// tracks them.
+fn check_replay_and_tracking(
+    out_dir: &Path,
+    dynamic: &[Record],
+    stat: &[Record],
+    summary: &mut String,
+) -> Result<()> {
+    let rate = BAKED_PARAMETERS.control.sample_rate_hz as f64;
     // 4. host replay
-    replay_on_host(&dynamic, InverseKind::Dynamic)?;
-    replay_on_host(&stat, InverseKind::Static)?;
-    say!("host replay: firmware currents and trajectory identical bit for bit (dynamic and static phases)");
+    replay_on_host(dynamic, InverseKind::Dynamic)?;
+    replay_on_host(stat, InverseKind::Static)?;
+    say!(summary, "host replay: firmware currents and trajectory identical bit for bit (dynamic and static phases)");
 
     // 5. tracking
     let field = tracking::relay_field(&BAKED_PARAMETERS, tracking::RELAY_SUBDIVISION)
         .map_err(|e| anyhow::anyhow!("reference relay field: {}", e.0))?;
-    let (dyn_stats, dyn_y) = track(&dynamic, InverseKind::Dynamic, &field)?;
-    let (stat_stats, stat_y) = track(&stat, InverseKind::Static, &field)?;
+    let (dyn_stats, dyn_y) = track(dynamic, InverseKind::Dynamic, &field)?;
+    let (stat_stats, stat_y) = track(stat, InverseKind::Static, &field)?;
     let ratio = stat_stats.rms_error_m / dyn_stats.rms_error_m;
     say!(
+        summary,
         "tracking (reference plant: f64 RK4, {} substeps/period, {} relays per cell side), trajectory p2p {:.3e} m:",
         tracking::SUBSTEPS,
         field.subdivision(),
         dyn_stats.peak_to_peak_m
     );
     say!(
+        summary,
         "  dynamic inverse: RMS {:.3e} m = {:.3} % of p2p, max {:.3e} m = {:.3} %",
         dyn_stats.rms_error_m,
         dyn_stats.rms_percent(),
@@ -538,13 +599,14 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         dyn_stats.max_percent()
     );
     say!(
+        summary,
         "  static inverse:  RMS {:.3e} m = {:.3} % of p2p, max {:.3e} m = {:.3} %",
         stat_stats.rms_error_m,
         stat_stats.rms_percent(),
         stat_stats.max_error_m,
         stat_stats.max_percent()
     );
-    say!("  static / dynamic RMS error: {ratio:.1}x");
+    say!(summary, "  static / dynamic RMS error: {ratio:.1}x");
     ensure!(
         dyn_stats.rms_error_m <= 0.01 * dyn_stats.peak_to_peak_m,
         "dynamic-inverse RMS error {:.3} % is above 1 % of the peak-to-peak",
@@ -554,12 +616,26 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         ratio > MIN_STATIC_OVER_DYNAMIC,
         "static inverse not clearly worse than the dynamic one (ratio {ratio:.2}, need > {MIN_STATIC_OVER_DYNAMIC})"
     );
-    write_tracking_csv(&out_dir, &dynamic, &dyn_y, &stat, &stat_y, rate)?;
-    say!("wrote out/qemu/tracking.csv");
+    write_tracking_csv(out_dir, dynamic, &dyn_y, stat, &stat_y, rate)?;
+    say!(summary, "wrote out/qemu/tracking.csv");
 
+    Ok(())
+}
+
+/// Steps 6-7: the image's sizes and its fatal paths (before the proof builds, which replace
+/// the binary).
+fn check_sizes_and_fatal_paths(
+    elf_path: &Path,
+    elf: &[u8],
+    out_dir: &Path,
+    summary: &mut String,
+) -> Result<()> {
     // 6. sizes
-    let (flash, ram) = section_sizes(&elf)?;
-    say!("firmware-qemu sizes: flash {flash} B, static RAM {ram} B (stack not included)");
+    let (flash, ram) = section_sizes(elf)?;
+    say!(
+        summary,
+        "firmware-qemu sizes: flash {flash} B, static RAM {ram} B (stack not included)"
+    );
 
     // 7. fatal paths (before the proof builds, which replace the binary)
     for (arg, want) in [
@@ -567,17 +643,22 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         ("inject=hardfault", 102),
         ("inject=sensor-fault", 7),
     ] {
-        let got = qemu(&elf_path, &out_dir, Some(arg)).output()?.status.code();
+        let got = qemu(elf_path, out_dir, Some(arg)).output()?.status.code();
         ensure!(
             got == Some(want),
             "{arg}: QEMU exit status {got:?}, expected {want}"
         );
-        say!("fatal path {arg}: QEMU exited with {want}");
+        say!(summary, "fatal path {arg}: QEMU exited with {want}");
     }
+    Ok(())
+}
+
+/// Step 8: the no-panic proof (last: it replaces the binary; the summary is written first).
+fn no_panic_proof(ctx: &Ctx, out_dir: &Path, summary: &mut String) -> Result<()> {
     // 8. no-panic proof (last: it replaces the binary; the summary is written first)
     let cmd = build(ctx, "board-mps2-an386,panic-never");
     println!("$ {}", display(&cmd));
-    std::fs::write(out_dir.join("summary.txt"), &summary)?;
+    std::fs::write(out_dir.join("summary.txt"), &*summary)?;
     let proof = run_capture(cmd)?;
     if !proof.0 {
         bail!(
@@ -597,10 +678,9 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         !canary.0 && canary.1.contains(PANIC_SYMBOL),
         "the canary build (a panic in the ISR) linked: the no-panic proof would not catch a panic"
     );
-    say!("no-panic proof: panic-never build links; the canary (bounds check in the ISR) fails to link as it must");
+    say!(summary, "no-panic proof: panic-never build links; the canary (bounds check in the ISR) fails to link as it must");
 
-    std::fs::write(out_dir.join("summary.txt"), &summary)?;
-    Ok(summary)
+    Ok(())
 }
 
 /// Runs a command, returning (success, stderr).

@@ -16,7 +16,7 @@ use maglab_dataset::dataset_info::DatasetInfo;
 use maglab_dataset::CurrentBetweenSamples;
 use maglab_model::candidates::{Candidate, IDENTIFICATION_RANGE};
 use maglab_model::experiments::{
-    describe, experiment_data, nominal_for_data, QUASI_STATIC_BELOW_HZ,
+    describe, experiment_data, nominal_for_data, ExperimentInfo, QUASI_STATIC_BELOW_HZ,
 };
 use maglab_model::fit::{FitSettings, ModelSetup};
 use maglab_model::model::{Electro, Mech};
@@ -162,6 +162,115 @@ pub fn identify_dynamics(
     starts: &[[f64; 3]],
     options: &IdentificationOptions,
 ) -> Result<DynamicIdentification, String> {
+    let rate_hz = check_inputs(params, measurements, starts, options)?;
+    let core = magctl::params::ActuatorParameters::from_file(params, "base parameters")
+        .map_err(|e| e.to_string())?;
+    let measure = core.preisach.measure();
+    let infos = describe(measurements, rate_hz);
+    let nominal = nominal_for_data(params, measurements, &infos);
+    let base = [
+        nominal.eddy_resistance_ohm,
+        nominal.damping_ratio,
+        nominal.resonance_hz,
+    ];
+    let dynamic: Vec<usize> = (0..measurements.len())
+        .filter(|&k| infos[k].fundamental_hz >= QUASI_STATIC_BELOW_HZ)
+        .collect();
+    if dynamic.is_empty() {
+        return Err(format!(
+            "no experiment has a fundamental >= {QUASI_STATIC_BELOW_HZ} Hz: R_eddy, xi, f0 need \
+             dynamic experiments"
+        ));
+    }
+    let fitted_set = fitted_band(&infos, &dynamic, options.fit_band_fraction);
+    let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
+    let fitted_up_to_hz = fitted_set
+        .iter()
+        .map(|&k| infos[k].fundamental_hz)
+        .fold(0.0f64, f64::max);
+    let substeps = options
+        .substeps
+        .unwrap_or_else(|| substeps_for(fitted_up_to_hz, 1.0 / rate_hz));
+    let passes = Passes {
+        linear: ModelSetup {
+            nominal: &nominal,
+            measure: &measure,
+            step_s: 1.0 / rate_hz,
+            interpolation: CurrentBetweenSamples::Linear,
+            substeps,
+            single_run: false,
+        },
+        measurements,
+        lead_in,
+        documented,
+        documented_starts: measurements
+            .iter()
+            .map(|m| documented.and_then(|d| d.start_of(&file_name(m))))
+            .collect(),
+        probe_lens: (0..measurements.len())
+            .map(|k| (settles[k] + options.fit.max_fit_samples).min(measurements[k].len()))
+            .collect(),
+        settles,
+        fitted_set,
+        settings: &options.fit,
+    };
+    let first_starts: Vec<[f64; 3]> = std::iter::once(base)
+        .chain(starts.iter().copied())
+        .collect();
+    let first = passes.run(base, &first_starts);
+    // The nuisances were estimated with the base file's constants. When the fit moved them
+    // far (a datasheet's R_eddy, xi, f0, not this rod's), that estimate is stale: with f0 20 %
+    // high the skew comes out at its +1 limit and f0 settles low to make up for it. So the
+    // nuisances are estimated again with the fitted constants and the fit repeated from them;
+    // the pass with the lower training residual is kept.
+    let moved =
+        |v: &[f64]| (0..3).any(|i| (v[i] / base[i]).ln().abs() > RE_ESTIMATE_NUISANCES_AFTER.ln());
+    let chosen = if moved(&first.fit.fitted.values) {
+        let v = &first.fit.fitted.values;
+        let fitted_constants = [v[0], v[1], v[2]];
+        let second = passes.run(fitted_constants, &[fitted_constants]);
+        if second.fit.fitted.training_rms_m < first.fit.fitted.training_rms_m {
+            second
+        } else {
+            first
+        }
+    } else {
+        first
+    };
+    let residual = residual_of(&passes, &chosen, &dynamic);
+    let v = &chosen.fit.fitted.values;
+    Ok(DynamicIdentification {
+        fitted_up_to_hz,
+        substeps,
+        eddy_resistance_ohm: v[0],
+        damping_ratio: v[1],
+        resonance_hz: v[2],
+        current_between_samples: chosen.interpolation,
+        channel_skew_samples: v[3],
+        sensor_offset_m: residual.offset_m,
+        start_state: chosen.start_sets[chosen.fit.plan].0.name().into(),
+        documented_starts: passes
+            .documented_starts
+            .iter()
+            .filter(|s| s.is_some())
+            .count(),
+        rms_m: residual.rms_m,
+        noise_m: residual.noise_m,
+        systematic_m: systematic(residual.rms_m, residual.noise_m),
+        nrmse: residual.nrmse,
+        predictions: residual.predictions,
+        evaluations: chosen.fit.fitted.evaluations,
+    })
+}
+
+/// The inputs make sense (a valid base, positive starts, one sampling rate, substeps and band
+/// in range); returns the rate, Hz.
+fn check_inputs(
+    params: &actuator_params::ActuatorParams,
+    measurements: &[Measurement],
+    starts: &[[f64; 3]],
+    options: &IdentificationOptions,
+) -> Result<f64, String> {
     params
         .validate("base parameters")
         .map_err(|e| e.to_string())?;
@@ -185,25 +294,6 @@ pub fn identify_dynamics(
             1.0 / m.step_s
         ));
     }
-    let core = magctl::params::ActuatorParameters::from_file(params, "base parameters")
-        .map_err(|e| e.to_string())?;
-    let measure = core.preisach.measure();
-    let infos = describe(measurements, rate_hz);
-    let nominal = nominal_for_data(params, measurements, &infos);
-    let base = [
-        nominal.eddy_resistance_ohm,
-        nominal.damping_ratio,
-        nominal.resonance_hz,
-    ];
-    let dynamic: Vec<usize> = (0..measurements.len())
-        .filter(|&k| infos[k].fundamental_hz >= QUASI_STATIC_BELOW_HZ)
-        .collect();
-    if dynamic.is_empty() {
-        return Err(format!(
-            "no experiment has a fundamental >= {QUASI_STATIC_BELOW_HZ} Hz: R_eddy, xi, f0 need \
-             dynamic experiments"
-        ));
-    }
     if options.substeps == Some(0) {
         return Err("substeps must be at least 1, got 0".into());
     }
@@ -213,7 +303,12 @@ pub fn identify_dynamics(
             options.fit_band_fraction
         ));
     }
-    // The fitted band: at least two distinct frequencies, else every dynamic experiment.
+    Ok(rate_hz)
+}
+
+/// The fitted experiments: the dynamic ones up to `fraction` of the highest fundamental, when
+/// they hold at least two distinct frequencies; else every dynamic experiment.
+fn fitted_band(infos: &[ExperimentInfo], dynamic: &[usize], fraction: f64) -> Vec<usize> {
     let top_hz = dynamic
         .iter()
         .map(|&k| infos[k].fundamental_hz)
@@ -221,55 +316,60 @@ pub fn identify_dynamics(
     let in_band: Vec<usize> = dynamic
         .iter()
         .copied()
-        .filter(|&k| infos[k].fundamental_hz <= options.fit_band_fraction * top_hz)
+        .filter(|&k| infos[k].fundamental_hz <= fraction * top_hz)
         .collect();
     let mut band_freqs: Vec<f64> = in_band.iter().map(|&k| infos[k].fundamental_hz).collect();
     band_freqs.sort_by(f64::total_cmp);
     band_freqs.dedup_by(|a, b| (*a - *b).abs() <= 0.05 * *b);
-    let fitted_set = if band_freqs.len() >= 2 {
+    if band_freqs.len() >= 2 {
         in_band
     } else {
-        dynamic.clone()
-    };
-    let file_name = |m: &Measurement| {
-        m.path
-            .file_name()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default()
-    };
-    let documented_starts: Vec<_> = measurements
-        .iter()
-        .map(|m| documented.and_then(|d| d.start_of(&file_name(m))))
-        .collect();
-    let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
-    let probe_lens: Vec<usize> = (0..measurements.len())
-        .map(|k| (settles[k] + options.fit.max_fit_samples).min(measurements[k].len()))
-        .collect();
-    let fitted_up_to_hz = fitted_set
-        .iter()
-        .map(|&k| infos[k].fundamental_hz)
-        .fold(0.0f64, f64::max);
-    let substeps = options
-        .substeps
-        .unwrap_or_else(|| substeps_for(fitted_up_to_hz, 1.0 / rate_hz));
-    let linear = ModelSetup {
-        nominal: &nominal,
-        measure: &measure,
-        step_s: 1.0 / rate_hz,
-        interpolation: CurrentBetweenSamples::Linear,
-        substeps,
-        single_run: false,
-    };
-    // One pass: the nuisances estimated with the model of `constants`, then the fit from
-    // `fit_starts` with them.
-    let pass = |constants: [f64; 3], fit_starts: &[[f64; 3]]| {
+        dynamic.to_vec()
+    }
+}
+
+/// The file name of a record.
+fn file_name(m: &Measurement) -> String {
+    m.path
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// What every pass shares: the model, the records, their starts, the fitted experiments.
+struct Passes<'a> {
+    linear: ModelSetup<'a>,
+    measurements: &'a [Measurement],
+    lead_in: Option<&'a Measurement>,
+    documented: Option<&'a DatasetInfo>,
+    documented_starts: Vec<Option<maglab_dataset::StartState>>,
+    settles: Vec<usize>,
+    probe_lens: Vec<usize>,
+    fitted_set: Vec<usize>,
+    settings: &'a FitSettings,
+}
+
+/// One pass's result.
+struct Pass {
+    start_sets: Vec<(
+        maglab_dataset::StartState,
+        Vec<(maglab_model::model::ModelStart, bool)>,
+    )>,
+    interpolation: CurrentBetweenSamples,
+    fit: maglab_model::plan_fit::PlanFit,
+}
+
+impl Passes<'_> {
+    /// One pass: the nuisances estimated with the model of `constants`, then the fit from
+    /// `fit_starts` with them.
+    fn run(&self, constants: [f64; 3], fit_starts: &[[f64; 3]]) -> Pass {
         let electro = Electro::nominal(constants[0]);
         let mech = Mech::nominal(constants[1], constants[2]);
         // The first experiment, when it continues the record before it, starts from its memory.
-        let mut lead_ins = vec![None; measurements.len()];
-        lead_ins[0] = lead_in.map(|record| {
-            let start = documented.and_then(|d| d.start_of(&file_name(record)));
-            lead_in_memory(&linear, &electro, record, start)
+        let mut lead_ins = vec![None; self.measurements.len()];
+        lead_ins[0] = self.lead_in.map(|record| {
+            let start = self.documented.and_then(|d| d.start_of(&file_name(record)));
+            lead_in_memory(&self.linear, &electro, record, start)
         });
         let NuisanceEstimate {
             start_sets,
@@ -278,74 +378,70 @@ pub fn identify_dynamics(
             skew,
             ..
         } = estimate_nuisances(
-            &linear,
-            measurements,
-            &settles,
-            &fitted_set,
-            &probe_lens,
-            &documented_starts,
+            &self.linear,
+            self.measurements,
+            &self.settles,
+            &self.fitted_set,
+            &self.probe_lens,
+            &self.documented_starts,
             &lead_ins,
             &electro,
             &mech,
         );
         let plan_data: Vec<_> = start_sets
             .iter()
-            .map(|(_, st)| experiment_data(measurements, &settles, st))
+            .map(|(_, st)| experiment_data(self.measurements, &self.settles, st))
             .collect();
         let fitter = PlanFitter {
             setup: ModelSetup {
                 interpolation,
-                ..linear
+                ..self.linear
             },
             plan_data: &plan_data,
-            training: &fitted_set,
+            training: &self.fitted_set,
             first_plan: plan,
-            settings: &options.fit,
+            settings: self.settings,
         };
-        let fitted = fitter.fit(
+        let fit = fitter.fit(
             &Candidate::nominal(),
             &fit_starts
                 .iter()
                 .map(|s| vec![s[0], s[1], s[2], skew])
                 .collect::<Vec<_>>(),
         );
-        (start_sets, interpolation, fitted)
-    };
-    let first_starts: Vec<[f64; 3]> = std::iter::once(base)
-        .chain(starts.iter().copied())
-        .collect();
-    let first = pass(base, &first_starts);
-    // The nuisances were estimated with the base file's constants. When the fit moved them
-    // far (a datasheet's R_eddy, xi, f0, not this rod's), that estimate is stale: with f0 20 %
-    // high the skew came out at its +1 limit and f0 settled 12-14 % low to make up for it (the
-    // bench plant without effects, seed 1 cases 15 and 29). So the nuisances are estimated
-    // again with the fitted constants and the fit repeated from them; the pass with the lower
-    // training residual is kept.
-    let moved =
-        |v: &[f64]| (0..3).any(|i| (v[i] / base[i]).ln().abs() > RE_ESTIMATE_NUISANCES_AFTER.ln());
-    let (start_sets, interpolation, fitted) = if moved(&first.2.fitted.values) {
-        let v = &first.2.fitted.values;
-        let fitted_constants = [v[0], v[1], v[2]];
-        let second = pass(fitted_constants, &[fitted_constants]);
-        if second.2.fitted.training_rms_m < first.2.fitted.training_rms_m {
-            second
-        } else {
-            first
+        Pass {
+            start_sets,
+            interpolation,
+            fit,
         }
-    } else {
-        first
-    };
+    }
+}
+
+/// The chosen pass's residual on every dynamic experiment.
+struct Residual {
+    offset_m: f64,
+    rms_m: f64,
+    noise_m: f64,
+    nrmse: Vec<(String, f64)>,
+    predictions: Vec<(String, Vec<f64>)>,
+}
+
+/// The residual of `pass` on the `dynamic` experiments: the sensor offset, the pooled RMS, the
+/// white-noise level (median over experiments), each experiment's NRMSE and prediction.
+fn residual_of(passes: &Passes<'_>, pass: &Pass, dynamic: &[usize]) -> Residual {
+    let measurements = passes.measurements;
     let setup = ModelSetup {
-        interpolation,
-        ..linear
+        interpolation: pass.interpolation,
+        ..passes.linear
     };
-    let plan_data: Vec<_> = start_sets
+    let plan_data: Vec<_> = pass
+        .start_sets
         .iter()
-        .map(|(_, st)| experiment_data(measurements, &settles, st))
+        .map(|(_, st)| experiment_data(measurements, &passes.settles, st))
         .collect();
-    let (e, m) = fitted.fitted.model();
-    let data = &plan_data[fitted.plan];
-    let preds = setup.predict_all(&e, &m, data, &dynamic);
+    let (e, m) = pass.fit.fitted.model();
+    let data = &plan_data[pass.fit.plan];
+    let preds = setup.predict_all(&e, &m, data, dynamic);
     let items: Vec<(&[f64], &[f64], usize)> = dynamic
         .iter()
         .zip(&preds)
@@ -361,7 +457,6 @@ pub fn identify_dynamics(
         })
         .collect();
     sigmas.sort_by(f64::total_cmp);
-    let noise = sigmas[sigmas.len() / 2];
     let nrmse = dynamic
         .iter()
         .zip(&items)
@@ -385,23 +480,11 @@ pub fn identify_dynamics(
             )
         })
         .collect();
-    let v = &fitted.fitted.values;
-    Ok(DynamicIdentification {
-        fitted_up_to_hz,
-        substeps,
-        eddy_resistance_ohm: v[0],
-        damping_ratio: v[1],
-        resonance_hz: v[2],
-        current_between_samples: interpolation,
-        channel_skew_samples: v[3],
-        sensor_offset_m: offset,
-        start_state: start_sets[fitted.plan].0.name().into(),
-        documented_starts: documented_starts.iter().filter(|s| s.is_some()).count(),
+    Residual {
+        offset_m: offset,
         rms_m: rms,
-        noise_m: noise,
-        systematic_m: systematic(rms, noise),
+        noise_m: sigmas[sigmas.len() / 2],
         nrmse,
         predictions,
-        evaluations: fitted.fitted.evaluations,
-    })
+    }
 }
