@@ -190,7 +190,7 @@ fn fuzzed_lines(f: &mut Floats<'_>) -> Option<[f32; magctl::preisach::LEVELS + 1
 }
 
 /// Arbitrary f32 inputs to the core's update paths; checks they stay total and bounded. An input
-/// whose first byte is odd runs on a grid with fuzzed lines (issue 13) instead of the baked one.
+/// whose first byte is odd runs on a grid with fuzzed lines instead of the baked one.
 pub fn core_numerics(data: &[u8]) {
     let lined;
     let m = if data.first().is_some_and(|b| b & 1 == 1) {

@@ -2,7 +2,7 @@
 //!
 //! Drives the model with a biased 200 Hz sine at 10 kHz (reversals every 25 steps, the rate-
 //! dependent regime the model exists for) and a band-limited random current. Throughput target
-//! (issue 3): ≥ 5 million steps/s on one core.
+//! ≥ 5 million steps/s on one core.
 //!
 //! Run: `cargo bench -p host-tests --bench model_step`.
 

@@ -152,7 +152,7 @@ fn core_matches_reference_for_biased_sines_at_10khz() {
         let (error, _) = check_against_reference(&format!("{freq} Hz"), &currents, &fields);
         worst = worst.max(error);
     }
-    // The figure README and BENCHMARKS quote: the worst error relative to the stroke.
+    // The figure docs/model.md and BENCHMARKS.md quote: the worst error relative to the stroke.
     println!(
         "worst error over 1..400 Hz at 10 kHz: {:.3} % of stroke",
         100.0 * worst

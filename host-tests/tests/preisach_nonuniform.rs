@@ -1,4 +1,4 @@
-//! The core on a grid with unequal intervals (`PreisachMeasure::with_lines`, issue 13) against
+//! The core on a grid with unequal intervals (`PreisachMeasure::with_lines`) against
 //! the independent f64 relay reference built on the same lines (`RelayPreisach::with_lines`),
 //! driven **in the field** (A/m), so the two maps between the field and the normalized input —
 //! the core's f32 piecewise-affine `normalize`/`denormalize`, the reference's f64 one — are part

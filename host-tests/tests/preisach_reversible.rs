@@ -1,4 +1,4 @@
-//! The core's reversible part (`PreisachMeasure::with_reversible`, issue 13 point 3:
+//! The core's reversible part (`PreisachMeasure::with_reversible`:
 //! `M = Γ[H] + R(H)`, `R` monotone piecewise linear with a free slope per grid interval) against
 //! its definition evaluated independently in f64 (`reference::preisach::reversible_a_per_m`, from
 //! the field, no tables) on top of the relay reference, and the exact inverse and solve with it.

@@ -1,5 +1,5 @@
 //! The inverse controller (`magctl::inverse::ControlLoop`, the firmware's interrupt code) against
-//! the independent reference plant (`host_tests::tracking`): issue 5's acceptance on the host.
+//! the independent reference plant (`host_tests::tracking`): the closed loop's goal on the host.
 //!
 //! The trajectory is the baked default (Van der Pol, μ = 1, 100 Hz scale: fundamental ≈ 94 Hz,
 //! odd harmonics above), 1 s of control time at 10 kHz.
@@ -27,7 +27,7 @@ fn run(kind: InverseKind, relays_per_cell: usize, seconds: f64) -> TrackingRun {
     r
 }
 
-/// Acceptance (issue 5): dynamic-inverse RMS error ≤ 1 % of the trajectory's peak-to-peak on the
+/// The goal: dynamic-inverse RMS error ≤ 1 % of the trajectory's peak-to-peak on the
 /// nominal plant; the static inverse clearly worse. "Clearly": the static inverse ignores (4)-(5),
 /// whose phase lag at the ≈ 94 Hz fundamental alone is ≈ 2ξ f / f0 ≈ 0.37 rad, an RMS error of
 /// ≈ 13 % of the peak-to-peak, i.e. more than 10× the dynamic inverse's 1 % bound; require 5×.

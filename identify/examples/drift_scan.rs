@@ -1,7 +1,6 @@
 //! Scans quasi-static records for drift (`maglab_identify::drift`): per file, the counted visits to
 //! the largest and the smallest current, their spread as a fraction of the record's displacement
-//! range, and whether `maglab identify` would warn. The figures in `drift`'s module docs and the
-//! README come from the sweeps the identified suite writes (`IDENTIFIED_DIR=DIR
+//! range, and whether `maglab identify` would warn. The figures in `drift`'s module docs come from the sweeps the identified suite writes (`IDENTIFIED_DIR=DIR
 //! IDENTIFIED_SEED=N cargo test --release -p maglab --test identified_suite -- --ignored`):
 //!
 //! ```sh

@@ -1,5 +1,5 @@
 //! Writes the synthetic identification dataset of `tests/dynamics.rs` to a folder, for
-//! `maglab identify` (README, "MassIdentification"):
+//! `maglab identify` (docs/identification.md):
 //!
 //! ```sh
 //! cargo run --release -p maglab-identify --example synthetic_dataset -- out/synthetic-dataset

@@ -1,4 +1,4 @@
-//! Where the grid's 26 lines go (issue 13): equal intervals, or narrower where the data's output
+//! Where the grid's 26 lines go: equal intervals, or narrower where the data's output
 //! changes most.
 //!
 //! # Equal output change

@@ -240,7 +240,7 @@ pub fn displacement_noise_m(y: &[f64]) -> f64 {
 /// `σ_u² / (8 u²)` of itself (second order): near `M = 0`, on the steep branch around the coercive
 /// field, that is percents, the masses there come out low and R_eddy, ξ, f0 bend to make up for
 /// it (measured on `maglab rig` folders: R_eddy +8.2 % at σ = 0.5 µm with the fixed zero band,
-/// +2.5 % with this bound, +1.4 % without noise; README, "The sweep's rows near M = 0").
+/// +2.5 % with this bound, +1.4 % without noise).
 pub const SQRT_NOISE_BIAS_MAX: f64 = 0.001;
 
 /// The fit floor never passes this fraction of the stroke `l_m λ_s` (`|M| = 0.32 M_s`): a record

@@ -1,4 +1,4 @@
-//! An almost anhysteretic material (issue 13: the single-slope reversible part made the fit 12×
+//! An almost anhysteretic material (the single-slope reversible part made the fit 12×
 //! worse than a plain centre line there): B–H-like loops `y = tanh((u ∓ c) / a)` with a coercive
 //! shift `c` of 1 % of the loop's field, three amplitudes, written as one CSV with a loop column;
 //! fit two loops with `maglab preisach-fit`'s defaults, predict the third. The data are not made by

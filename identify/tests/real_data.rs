@@ -43,8 +43,8 @@ const OPTIONS: FitOptions = FitOptions {
 #[test]
 fn bh_loops_fit_two_amplitudes_predict_the_others() {
     // (file, grid lines, reversible part, asserted bound on the prediction NRMSE of loops 0 and
-    // 2): the defaults (lines and smoothness validated, piecewise reversible part; issue 13 goals
-    // 1.0 % and 1.5 %), and as the comparison the previous default's single-slope part.
+    // 2): the defaults (lines and smoothness validated, piecewise reversible part; goals 1.0 %
+    // and 1.5 %), and as the comparison the previous default's single-slope part.
     for (file, lines, reversible, bound) in [
         (
             "mnzn-ferrite.csv",

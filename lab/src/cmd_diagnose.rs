@@ -131,7 +131,7 @@ fn also_significant_note(d: &maglab_diagnose::diagnosis::Diagnosis) -> Option<St
              rod's resonance a lag of the amplifier, the sensor or a load, or eddy currents that \
              vary with frequency, shift the response as lower R_eddy, xi, f0 do: the identified \
              constants absorb part of any of them, and these are the effects that identify -> \
-             diagnose took for one another on the bench plant (README, \"Identify -> diagnose\").",
+             diagnose takes for one another.",
             d.constants_range.identified_from_data.join(", ")
         )
     } else {

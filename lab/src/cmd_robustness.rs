@@ -429,7 +429,7 @@ fn write_trace(dir: &Path, name: &str, rate_hz: f64, open: &Trace, closed: &Trac
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// The CSV of the matrix (the header of issue 11).
+/// The CSV of the matrix.
 pub fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
     let mut f = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?,

@@ -3,7 +3,7 @@
 //! Text is rendered with DejaVu Sans embedded in the binary (the `dejavu` crate) through
 //! plotters' `ab_glyph` feature, so a plot looks the same on a clean machine with no system fonts
 //! or fontconfig. A command builds a [`Figure`] (panels of [`Series`]) and calls
-//! [`Figure::write`] with a path stem; the PNG is what the README shows, the SVG is for zooming.
+//! [`Figure::write`] with a path stem; the PNG is what the docs show, the SVG is for zooming.
 
 use anyhow::{anyhow, Context, Result};
 use plotters::coord::Shift;

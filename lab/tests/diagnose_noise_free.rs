@@ -55,7 +55,7 @@ fn diagnose_noise_free(rig_args: &[&str]) -> (serde_json::Value, String) {
 #[test]
 fn a_noise_free_dataset_without_an_effect_is_none_within_the_models_integration_error() {
     // Five frequencies through the rod's resonance region, two amplitudes (a CI budget; the
-    // README's 8 x 2 dataset gives the same verdict).
+    // the docs' 8 x 2 dataset gives the same verdict).
     let (d, text) = diagnose_noise_free(&[
         "--freq",
         "20,50,100,200,400",

@@ -70,7 +70,7 @@ fn defaults_choose_periodic_affine_and_the_models_grouping() {
         "{predict}"
     );
     let nrmse = number_after(&predict, "NRMSE");
-    // The README's figure with explicit options; the defaults must reach it.
+    // The docs' figure with explicit options; the defaults must reach it.
     assert!(nrmse < 2.1, "defaults give {nrmse} %:\n{predict}");
     // Pooled as one experiment (the old behaviour) is far worse: the grouping matters.
     let pooled = maglab(&[

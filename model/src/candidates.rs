@@ -382,7 +382,7 @@ pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec
             // a mass of 2 % of the rod's on a spring and a damper, the sensor reading it, is a
             // second-order low-pass on the reading — the sensor's mount, the form of
             // `sensor_dynamics` — and a load fit that runs there is a sensor lag in disguise
-            // (seen with identified files, f0 free x/ 2; README, identify -> diagnose, b390fa3).
+            // (seen with identified files, f0 free x/ 2).
             spec("mass_ratio", 0.02, 10.0, true, B, Edge::Both),
             spec("coupling_hz", 0.5 * f0, 20.0 * f0, true, B, Edge::Low),
             spec("damping_ratio", 0.02, 3.0, true, B, Edge::None),

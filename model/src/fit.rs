@@ -4,9 +4,8 @@
 //! the electromagnetic stage cached, so that the Jacobian columns of mechanical and sensor
 //! parameters cost one mechanical run each, and the mechanical stage's track cached too, so
 //! that the columns of the channel skew and the sensor's parameters (which act on the track
-//! afterwards, [`crate::model::observe`]) cost only the sensor's reading of it: the same
-//! numbers, bit for bit (`suite_case 1 5` and `1 17`: the same report; 18.3 -> 17.7 s and
-//! 46.6 -> 45.3 s of CPU).
+//! afterwards, [`crate::model::observe`]) cost only the sensor's reading of it (the same
+//! numbers, bit for bit).
 //!
 //! **Jacobian.** Forward differences of step [`JACOBIAN_STEP`] in the unbounded coordinates. The
 //! columns of the electromagnetic parameters (`R_eddy`, the eddy paths, the amplifier, the
@@ -19,9 +18,7 @@
 //! the model's own integration error: on a noise-free dataset without an effect
 //! (`lab/tests/diagnose_noise_free.rs`) the amplifier candidate's training RMS ends at 1.95 nm
 //! instead of 1.48 nm (of a 35 µm motion); with noise that difference is far below every
-//! threshold. Measured on the blind suite (release `suite_case 1 N`, user time, before and after,
-//! alternating): 1/6 21.5 -> 15.4 s, 1/3 32.2 -> 27.6 s, 1/11 38.5 -> 31.3 s, 1/0 19.3 -> 16.7 s,
-//! the same verdicts.
+//! threshold, and the single-run columns cut a diagnosis by a fifth to a quarter.
 //!
 //! Starts: every start is evaluated once and the best (and the second when within 10 % of it)
 //! refined. A candidate with effects is refined twice from each: all parameters at once, and in

@@ -26,7 +26,7 @@
 //! lost and the programme ends at 0 A (`MEAS-END` reports it; the recorder refuses an
 //! incomplete record). After the programme the coil ramps to 0 A and stays there.
 //!
-//! Flash and run with probe-rs (`probe-rs run --chip STM32F446RETx <elf>`, see README); the
+//! Flash and run with probe-rs (`probe-rs run --chip STM32F446RETx <elf>`, docs/firmware.md); the
 //! fatal paths (panic, HardFault, unexpected interrupt) command 0 A and halt at a breakpoint
 //! (`magctl::board::nucleo_f446re::fatal`).
 #![cfg_attr(target_os = "none", no_std)]

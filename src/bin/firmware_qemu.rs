@@ -420,7 +420,7 @@ mod firmware {
         a.wrapping_sub(b) & 0x00FF_FFFF
     }
 
-    /// Instructions of one dynamic-model step (`magctl::model::DynamicModel::step`, issue 3's
+    /// Instructions of one dynamic-model step (`magctl::model::DynamicModel::step`, the
     /// figure) on this core: 2000 steps of a 0.5 ± 0.45 A, 200 Hz sine at the control rate from the
     /// demagnetized state, each timed with SysTick minus the cost of the two reads
     /// (`read_overhead_ticks`, from the calibration). Returns (min, mean, max) instructions.

@@ -689,7 +689,7 @@ mod tests {
             100.0 * e16 / p2p
         );
         assert!(e16 <= 0.5 * e4, "rms {e4} m (m = 4) -> {e16} m (m = 16)");
-        // Acceptance bound of issue 5, on the nearly continuous model.
+        // The closed loop's 1 % goal, on the nearly continuous model.
         assert!(e16 <= 0.01 * p2p);
     }
 

@@ -1,6 +1,6 @@
 //! The `docs` step of `cargo xtask test`: every relative link and image in the project's Markdown
 //! files (`*.md` at the root and under `docs/`) points to a file or directory that exists, so
-//! the README's figures and cross-references cannot silently break.
+//! the README's and the docs' figures and cross-references cannot silently break.
 //!
 //! A link is the `(target)` after `](` in inline Markdown links and images; web links
 //! (`scheme://`, `mailto:`) and pure anchors (`#...`) are skipped, a `#fragment` is ignored, and

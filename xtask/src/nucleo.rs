@@ -1,7 +1,7 @@
 //! `cargo xtask nucleo`: builds the NUCLEO-F446RE firmware and proves it panic-free at link time.
 //!
 //! Steps (no board or probe needed; flashing is `probe-rs run --chip STM32F446RETx <elf>`, see
-//! README):
+//! docs/firmware.md):
 //! 1. **Build** `firmware-nucleo` (release, `--features board-nucleo-f446re`) into
 //!    `target/firmware/`, and report its flash and static RAM from the ELF's section headers.
 //! 2. **No-panic proof**: the same with `panic-never` must link (no panic path anywhere in the

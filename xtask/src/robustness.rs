@@ -1,4 +1,4 @@
-//! `cargo xtask robustness`: the closed loop's robustness matrix (issue 11, `docs/control.md`).
+//! `cargo xtask robustness`: the closed loop's robustness matrix (`docs/control.md`).
 //!
 //! 1. `maglab robustness --out out/robustness` runs every case on the host (the controller's own
 //!    code, `magctl::inverse::ControlLoop`, in lock-step with the bench plant) with and without

@@ -276,7 +276,7 @@ fn await_blind_suite(_ctx: &Ctx) -> Result<()> {
 /// core. Measured alone, `cargo xtask hil --check`: 147 s wall, 105 s user + 67 s system on both
 /// cores; 176 s wall, 164 s user + 10 s system under `taskset -c 0` (the 121 723-tick measurement
 /// 76.7 s -> 63.2 s; what it loses is `maglab identify`'s second thread and the builds). Beside
-/// the suite in CI, with only the suite confined, `hil` took 238 s (clean clone of 981782f).
+/// the suite in CI, with only the suite confined, `hil` took 238 s on a clean clone.
 /// Measured beside the suite on both cores: `hil`'s default run 12.5 s under `nice -n19`, 7.5 s
 /// in the idle class (5 s alone). (Once, in the idle class, the link lost the firmware's last two
 /// frames of the `garbage` fault run: QEMU's socket was reset on exit with bytes unread; the

@@ -85,7 +85,7 @@ impl DynamicIdentification {
 /// --bias-a 0.54 --seed 3`) the model with the plant's own parameters and nuisances lags 0.69°,
 /// 0.19° and 0.05° less than the recording at 198.5 Hz with 1, 2 and 4 substeps, and the fit,
 /// given the plant's own masses, makes up for it with `R_eddy` −2.8 %, −0.24 % and −0.06 % off
-/// (README, "The fit's own integration error"). 0.005 gives 4 substeps there.
+/// 0.005 gives 4 substeps there.
 pub const SUBSTEP_MAX_CYCLES: f64 = 0.005;
 
 /// The automatic choice never passes this many substeps per sample (the cost of a model

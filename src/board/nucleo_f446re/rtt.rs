@@ -4,7 +4,7 @@
 //! RTT: a control block `_SEGGER_RTT` in RAM (id string, one up channel) that the debug probe
 //! finds through the ELF symbol and reads over SWD while the core runs. The up channel's ring
 //! buffer is written here (`write` index) and drained by the probe (`read` index); probe-rs decodes
-//! the bytes with the ELF's defmt table (`probe-rs run`, see README).
+//! the bytes with the ELF's defmt table (`probe-rs run`, docs/firmware.md).
 //!
 //! Policy: **never block**. A frame that does not fit in the free space is truncated and the
 //! dropped bytes counted in [`DROPPED_BYTES`] (defmt-rtt's default non-blocking mode behaves the
