@@ -163,7 +163,7 @@ fn piezo_fit_early_cycles_predict_later_ones() {
     // Finer lines where the output changes most cost this record resolution (0.33 %): `auto`
     // keeps the uniform grid.
     assert_eq!(model.provenance["grid_lines"], "uniform");
-    // Issue 13 goal: 0.15 %.
+    // The goal: 0.15 %.
     assert!(score <= 0.0015, "piezo prediction NRMSE {score} > 0.15 %");
     assert!(fit_score <= 0.0032, "piezo fit NRMSE {fit_score} > 0.32 %");
 }

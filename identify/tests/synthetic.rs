@@ -143,7 +143,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
         println!("held-out sequence {seed}: RMS error {:.4} % of the full output range ({:.4} % of its own range)", 100.0 * err, 100.0 * own);
         worst = worst.max(err);
     }
-    // Issue 4 acceptance: within 1 % of the output range (the full range ±Σw = ±M_s).
+    // The goal: within 1 % of the output range (the full range ±Σw = ±M_s).
     assert!(
         worst <= 0.01,
         "held-out prediction error {:.4} % > 1 %",

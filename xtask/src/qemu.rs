@@ -51,7 +51,7 @@ pub use crate::setup::FIRMWARE_TARGET as TARGET;
 const RECORD_BYTES: usize = 40;
 /// SysTick ticks per instruction under `-icount shift=10` on the 25 MHz mps2: 1024 ns × 25 MHz.
 const TICKS_PER_INSTRUCTION: f64 = 25.6;
-/// Issue 5's goal for the whole handler.
+/// The goal for the whole handler.
 const MAX_INSTRUCTIONS: f64 = 1_500.0;
 /// Budget of an interrupt that forces a staircase merge (the 64-point memory full: one O(N) scan
 /// of the 62 candidate rectangles, a memmove, a running-sum update): ≤ 2,500 instructions,
