@@ -58,6 +58,11 @@ pub struct PreisachGrid {
     pub lines_a_per_m: Option<[f32; crate::preisach::LEVELS + 1]>,
     /// The reversible part's susceptibility per grid interval; `None`: no reversible part.
     pub reversible_susceptibility: Option<[f32; crate::preisach::LEVELS]>,
+    /// `[H_lo, H_hi]`, the field range the coil drives the rod through, A/m; `None`: the coil
+    /// saturates the rod on the grid (`inverse::conditioning`).
+    pub reach_a_per_m: Option<[f32; 2]>,
+    /// `M_off`, the magnetization of the part of the plane the coil never switches, A/m.
+    pub offset_a_per_m: f32,
     /// Cell masses, A/m.
     pub weights_a_per_m: [f32; CELL_COUNT],
 }
@@ -76,10 +81,11 @@ impl PreisachGrid {
                 self.h_max_a_per_m,
             ),
         };
-        match &self.reversible_susceptibility {
+        let measure = match &self.reversible_susceptibility {
             Some(chi) => hysteretic.with_reversible(chi),
             None => hysteretic,
-        }
+        };
+        measure.with_offset(self.offset_a_per_m)
     }
 }
 
@@ -213,6 +219,8 @@ impl ActuatorParameters {
             h_max_a_per_m: 0.0,
             lines_a_per_m: None,
             reversible_susceptibility: None,
+            reach_a_per_m: None,
+            offset_a_per_m: 0.0,
             weights_a_per_m: [0.0; CELL_COUNT],
         },
         control: Control {

@@ -2,13 +2,17 @@
 //! needs to identify an actuator (Section 4 of the paper), generated tick by tick with no table.
 //!
 //! Experiments, in order, each preceded by the start-up conditioning sequence
-//! ([`Conditioning`]: negative saturation, then slowly to the experiment's first current — the
-//! start state `negative-saturation` of `dataset.json`):
-//! 0. the quasi-static **FORC sweep** (first-order reversal curves with a reversal on every grid
-//!    line, the path of `maglab_dataset::excitation::forc_waypoints`): from `overdrive` below the
-//!    grid to `overdrive` above it, then for `r = L−1 … 0` down to grid line `r` (the bottom for
-//!    `r = 0`) and back up; straight segments at the speed of a full-range triangle at
-//!    [`FORC_SWEEP_HZ`], each a whole number of ticks so that every reversal is a sample;
+//! ([`Conditioning`]: negative saturation, or the sweep of the rod's reach, then slowly to the
+//! experiment's first current — the start state `negative-saturation` or `conditioned` of
+//! `dataset.json`):
+//! 0. the quasi-static **FORC sweep** (first-order reversal curves with a reversal on every line
+//!    of `L` equal intervals of the swept range, the path of
+//!    `maglab_dataset::excitation::forc_waypoints`): the range is the grid, from `overdrive`
+//!    below it to `overdrive` above it, when the coil saturates the rod, else the reach the
+//!    conditioning sweeps (no overdrive: the reach is what the identification will model);
+//!    then for `r = L−1 … 0` down to line `r` (the bottom for `r = 0`) and back up; straight
+//!    segments at the speed of a full-range triangle at [`FORC_SWEEP_HZ`], each a whole number
+//!    of ticks so that every reversal is a sample;
 //! 1. … the **biased sines**, every frequency of [`SINE_FREQUENCIES_HZ`] at every amplitude of
 //!    [`SINE_AMPLITUDES_A`] around [`SINE_BIAS_A`], [`SINE_DURATION_S`] each.
 //!
@@ -19,8 +23,8 @@
 //! Cost per tick: a few compares, a multiply-add and (sines) one `sinf` — under 100 instructions
 //! beside the conditioning's ~15. No allocation, no panic path.
 
-use crate::inverse::{Conditioning, ConditioningError, ConditioningState, OutputLimiter};
-use crate::preisach::LEVELS;
+use crate::inverse::{Conditioning, ConditioningError, ConditioningState, OutputLimiter, Sweep};
+use crate::preisach::{PreisachMeasure, LEVELS};
 
 /// Speed of the FORC sweep: that of a full-range triangle at this rate, Hz.
 pub const FORC_SWEEP_HZ: f32 = 2.0;
@@ -30,9 +34,12 @@ pub const FORC_OVERDRIVE: f32 = 0.05;
 /// Frequencies of the sines, Hz.
 pub const SINE_FREQUENCIES_HZ: [f32; 6] = [20.0, 50.0, 100.0, 200.0, 300.0, 400.0];
 /// Amplitudes of the sines, A (every frequency at every amplitude).
-pub const SINE_AMPLITUDES_A: [f32; 3] = [0.15, 0.3, 0.45];
-/// DC bias of the sines, A.
-pub const SINE_BIAS_A: f32 = 0.55;
+pub const SINE_AMPLITUDES_A: [f32; 3] = [0.2, 0.4, 0.6];
+/// DC bias of the sines, A. The loops span 0.2–1.4 A, 0.1–0.7 of the ±2 A limit: the strain
+/// goes with `M²`, so the dynamics are seen best where `M` is large; on a rod the coil cannot
+/// saturate (plane 4× the reach) sines around 0.55 A strain it by under 6 µm, too little for the
+/// eddy lag to be resolved (R_eddy 11 % off), around 0.8 A by up to 12 µm (docs/model.md).
+pub const SINE_BIAS_A: f32 = 0.8;
 /// Duration of each sine, s.
 pub const SINE_DURATION_S: f32 = 0.2;
 /// Number of experiments: the FORC sweep and the sines.
@@ -86,7 +93,7 @@ pub struct Experiment {
 /// A rejected programme.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ProgrammeError {
-    /// The conditioning cannot saturate the rod (see [`ConditioningError`]).
+    /// The conditioning's settings are invalid (see [`ConditioningError`]).
     Conditioning(ConditioningError),
     /// The FORC sweep would move more than a quarter of a grid cell per tick (every cell must be
     /// crossed by several samples): the control rate is too low for [`FORC_SWEEP_HZ`].
@@ -103,8 +110,12 @@ pub enum ProgrammeError {
 pub struct IdentificationProgramme {
     conditioning: Conditioning,
     limit_a: f32,
+    /// Bottom of the swept range, A/m.
     h_min_a_per_m: f32,
+    /// Width of one of its `L` intervals, A/m.
     cell_width_a_per_m: f32,
+    /// The sweep's overshoot beyond the range, fraction of it.
+    overdrive: f32,
     coil_factor_per_m: f32,
     cells_per_tick: f32,
     /// Recorded ticks of the FORC sweep (computed once).
@@ -149,10 +160,11 @@ impl ProgrammeState {
     }
 }
 
-/// The FORC path in grid units (`0` = `h_min`, `LEVELS` = `h_max`).
-fn forc_waypoint(i: usize) -> f32 {
-    let top = LEVELS as f32 * (1.0 + FORC_OVERDRIVE);
-    let bottom = -(LEVELS as f32) * FORC_OVERDRIVE;
+/// The FORC path in units of the swept range's intervals (`0` = its bottom, `LEVELS` = its top),
+/// overshooting both ends by `overdrive` of the range.
+fn forc_waypoint(i: usize, overdrive: f32) -> f32 {
+    let top = LEVELS as f32 * (1.0 + overdrive);
+    let bottom = -(LEVELS as f32) * overdrive;
     match i {
         0 => bottom,
         _ if i % 2 == 1 => top,
@@ -169,15 +181,16 @@ fn forc_waypoint(i: usize) -> f32 {
 }
 
 impl IdentificationProgramme {
-    /// The programme for the output `limiter`, coil factor `c0`, Preisach grid
-    /// `[h_min, h_max]` and control rate.
+    /// The programme for the output `limiter`, coil factor `c0`, the Preisach grid of `measure`
+    /// with the rod's reach (`preisach.reach_a_per_m`; `None`: the grid) and the control rate.
     pub fn new(
         limiter: &OutputLimiter,
         coil_factor_per_m: f32,
-        h_min_a_per_m: f32,
-        h_max_a_per_m: f32,
+        measure: &PreisachMeasure,
+        reach_a_per_m: Option<[f32; 2]>,
         sample_rate_hz: f32,
     ) -> Result<Self, ProgrammeError> {
+        let (h_min_a_per_m, h_max_a_per_m) = (measure.h_min_a_per_m(), measure.h_max_a_per_m());
         if !(coil_factor_per_m.is_finite() && coil_factor_per_m > 0.0) {
             return Err(ProgrammeError::Invalid("coil_factor_per_m"));
         }
@@ -190,9 +203,20 @@ impl IdentificationProgramme {
         {
             return Err(ProgrammeError::Invalid("h_min_a_per_m < h_max_a_per_m"));
         }
-        let conditioning =
-            Conditioning::new(limiter, coil_factor_per_m, h_min_a_per_m, sample_rate_hz)
-                .map_err(ProgrammeError::Conditioning)?;
+        let conditioning = Conditioning::new(
+            limiter,
+            coil_factor_per_m,
+            measure,
+            reach_a_per_m,
+            sample_rate_hz,
+        )
+        .map_err(ProgrammeError::Conditioning)?;
+        let (sweep_lo, sweep_hi, overdrive) = match conditioning.sweep() {
+            Sweep::Saturate { .. } => (h_min_a_per_m, h_max_a_per_m, FORC_OVERDRIVE),
+            Sweep::Reach { low_a, high_a } => {
+                (low_a * coil_factor_per_m, high_a * coil_factor_per_m, 0.0)
+            }
+        };
         // A full-range triangle at f travels 2L cells per period.
         let cells_per_tick = 2.0 * LEVELS as f32 * FORC_SWEEP_HZ / sample_rate_hz;
         if cells_per_tick > 0.25 {
@@ -201,8 +225,9 @@ impl IdentificationProgramme {
         let mut programme = IdentificationProgramme {
             conditioning,
             limit_a: limiter.limit_a(),
-            h_min_a_per_m,
-            cell_width_a_per_m: (h_max_a_per_m - h_min_a_per_m) / LEVELS as f32,
+            h_min_a_per_m: sweep_lo,
+            cell_width_a_per_m: (sweep_hi - sweep_lo) / LEVELS as f32,
+            overdrive,
             coil_factor_per_m,
             cells_per_tick,
             forc_ticks: 0,
@@ -222,7 +247,8 @@ impl IdentificationProgramme {
 
     /// Ticks of FORC segment `i` (from waypoint `i − 1` to `i`).
     fn segment_ticks(&self, i: usize) -> u32 {
-        let length = libm::fabsf(forc_waypoint(i) - forc_waypoint(i - 1));
+        let length =
+            libm::fabsf(forc_waypoint(i, self.overdrive) - forc_waypoint(i - 1, self.overdrive));
         let steps = libm::ceilf(length / self.cells_per_tick);
         if steps < 1.0 {
             1
@@ -254,7 +280,21 @@ impl IdentificationProgramme {
         })
     }
 
-    /// Grid units → coil current, A.
+    /// The conditioning that precedes each experiment.
+    pub fn conditioning(&self) -> &Conditioning {
+        &self.conditioning
+    }
+
+    /// The start state every experiment has, by its `dataset.json` name: `negative-saturation`
+    /// after the saturating conditioning, `conditioned` after the sweep of the reach.
+    pub fn start_state_name(&self) -> &'static str {
+        match self.conditioning.sweep() {
+            Sweep::Saturate { .. } => "negative-saturation",
+            Sweep::Reach { .. } => "conditioned",
+        }
+    }
+
+    /// Swept-range units → coil current, A.
     fn forc_current_a(&self, x: f32) -> f32 {
         (self.h_min_a_per_m + x * self.cell_width_a_per_m) / self.coil_factor_per_m
     }
@@ -264,9 +304,12 @@ impl IdentificationProgramme {
         match self.experiment(k).map(|e| e.kind) {
             Some(ExperimentKind::Forc { .. }) => {
                 if s.segment == 0 {
-                    return self.forc_current_a(forc_waypoint(0));
+                    return self.forc_current_a(forc_waypoint(0, self.overdrive));
                 }
-                let (a, b) = (forc_waypoint(s.segment - 1), forc_waypoint(s.segment));
+                let (a, b) = (
+                    forc_waypoint(s.segment - 1, self.overdrive),
+                    forc_waypoint(s.segment, self.overdrive),
+                );
                 let steps = s.segment_steps.max(1);
                 self.forc_current_a(a + (b - a) * s.segment_tick as f32 / steps as f32)
             }
@@ -412,8 +455,8 @@ mod tests {
         IdentificationProgramme::new(
             &limiter,
             p.actuator.coil_factor_per_m,
-            BAKED_MEASURE.h_min_a_per_m(),
-            BAKED_MEASURE.h_max_a_per_m(),
+            &BAKED_MEASURE,
+            p.preisach.reach_a_per_m,
             p.control.sample_rate_hz,
         )
         .unwrap()
@@ -517,15 +560,15 @@ mod tests {
         let e = IdentificationProgramme::new(
             &limiter,
             p.actuator.coil_factor_per_m,
-            BAKED_MEASURE.h_min_a_per_m(),
-            BAKED_MEASURE.h_max_a_per_m(),
+            &BAKED_MEASURE,
+            None,
             100.0,
         );
         assert!(
             matches!(e, Err(ProgrammeError::SweepTooFast { .. })),
             "{e:?}"
         );
-        let e = IdentificationProgramme::new(&limiter, f32::NAN, -1.0, 1.0, 1e4);
+        let e = IdentificationProgramme::new(&limiter, f32::NAN, &BAKED_MEASURE, None, 1e4);
         assert_eq!(e, Err(ProgrammeError::Invalid("coil_factor_per_m")));
     }
 }

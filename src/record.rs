@@ -411,9 +411,10 @@ pub mod log {
     /// Logs the programme's header lines (`MEAS-BEGIN`, one `MEAS-EXP` per experiment).
     pub fn programme(programme: &IdentificationProgramme, rate_hz: f32) {
         defmt::info!(
-            "MEAS-BEGIN {=f32} Hz {=u32} experiments negative-saturation",
+            "MEAS-BEGIN {=f32} Hz {=u32} experiments {=str}",
             rate_hz,
-            EXPERIMENTS as u32
+            EXPERIMENTS as u32,
+            programme.start_state_name()
         );
         let mut k = 0;
         while let Some(e) = programme.experiment(k) {
@@ -517,8 +518,8 @@ mod tests {
         let programme = IdentificationProgramme::new(
             control.limiter(),
             p.actuator.coil_factor_per_m,
-            BAKED_MEASURE.h_min_a_per_m(),
-            BAKED_MEASURE.h_max_a_per_m(),
+            &BAKED_MEASURE,
+            p.preisach.reach_a_per_m,
             p.control.sample_rate_hz,
         )
         .unwrap();
@@ -577,8 +578,8 @@ mod tests {
         let programme = IdentificationProgramme::new(
             control.limiter(),
             p.actuator.coil_factor_per_m,
-            BAKED_MEASURE.h_min_a_per_m(),
-            BAKED_MEASURE.h_max_a_per_m(),
+            &BAKED_MEASURE,
+            p.preisach.reach_a_per_m,
             p.control.sample_rate_hz,
         )
         .unwrap();

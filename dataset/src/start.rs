@@ -10,6 +10,7 @@
 //! | `demagnetized` | AC-demagnetized at 0 A, then slowly to the first command | at rest there | yes |
 //! | `demagnetized-at-first-input` | AC-demagnetized around the first command | at rest there | no |
 //! | `negative-saturation` / `positive-saturation` | saturated, then slowly to the first command | at rest there | yes |
+//! | `conditioned` | the coil swept the rod's reach (up to its top, down to its bottom: the firmware's conditioning on a rod the coil cannot saturate), then slowly to the first command; on a rod it saturates the same as `negative-saturation` | at rest there | yes |
 //! | `periodic` | one period of a periodic steady state: the whole record played once before it | — | no |
 //! | `previous` | whatever the previous experiment (file-name order) left | carried over | yes |
 
@@ -28,6 +29,8 @@ pub enum StartState {
     NegativeSaturation,
     /// Positive saturation, then slowly to the first command.
     PositiveSaturation,
+    /// The reach swept (top, then bottom), then slowly to the first command.
+    Conditioned,
     /// One period of a periodic steady state (the record is played once before it starts).
     Periodic,
     /// The state the previous experiment (file-name order) left.
@@ -36,7 +39,7 @@ pub enum StartState {
 
 impl StartState {
     /// Every state with its interface name.
-    pub const NAMES: [(&'static str, StartState); 7] = [
+    pub const NAMES: [(&'static str, StartState); 8] = [
         ("switch-on-demagnetized", StartState::SwitchOnDemagnetized),
         ("demagnetized", StartState::Demagnetized),
         (
@@ -45,16 +48,18 @@ impl StartState {
         ),
         ("negative-saturation", StartState::NegativeSaturation),
         ("positive-saturation", StartState::PositiveSaturation),
+        ("conditioned", StartState::Conditioned),
         ("periodic", StartState::Periodic),
         ("previous", StartState::Previous),
     ];
 
     /// The states a bench documents in `dataset.json` and the dynamic model simulates.
-    pub const BENCH: [StartState; 5] = [
+    pub const BENCH: [StartState; 6] = [
         StartState::SwitchOnDemagnetized,
         StartState::Demagnetized,
         StartState::NegativeSaturation,
         StartState::PositiveSaturation,
+        StartState::Conditioned,
         StartState::Previous,
     ];
 

@@ -31,6 +31,10 @@ pub struct Grid {
     /// The `LEVELS + 1` grid lines (`lines[0] = h_min`, `lines[LEVELS] = h_max`, strictly
     /// increasing); `None`: equal intervals.
     pub lines: Option<[f64; LEVELS + 1]>,
+    /// The inputs `(low, high)` a start `conditioned` swept (the firmware's conditioning of a
+    /// rod it cannot saturate: up to `high`, down to `low`); `None`: that start is negative
+    /// saturation.
+    pub conditioning: Option<(f64, f64)>,
 }
 
 impl Grid {
@@ -40,6 +44,7 @@ impl Grid {
             h_min,
             h_max,
             lines: None,
+            conditioning: None,
         }
     }
 
@@ -54,6 +59,7 @@ impl Grid {
             h_min: lines[0],
             h_max: lines[LEVELS],
             lines: Some(lines),
+            conditioning: None,
         })
     }
 
@@ -73,6 +79,12 @@ impl Grid {
                 .map_err(|e| format!("preisach.grid_lines_a_per_m: {e}")),
             None => Ok(Grid::uniform(p.h_min_a_per_m, p.h_max_a_per_m)),
         }
+    }
+
+    /// The same grid with the sweep of a `conditioned` start.
+    pub fn with_conditioning(mut self, sweep: Option<(f64, f64)>) -> Self {
+        self.conditioning = sweep;
+        self
     }
 
     /// The grid lines (equally spaced when none were given).
@@ -176,6 +188,10 @@ pub fn run_experiment(
         input.first().map_or(0.0, |&u| grid.normalize(u))
     };
     let mut memory = Memory::initial(LEVELS, initial, centre_x);
+    if let (StartState::Conditioned, Some((low, high))) = (initial, grid.conditioning) {
+        memory.move_to(grid.normalize(high).clamp(0.0, LEVELS as f64));
+        memory.move_to(grid.normalize(low).clamp(0.0, LEVELS as f64));
+    }
     if initial == StartState::Periodic {
         for &u in input {
             memory.move_to(grid.normalize(u));
@@ -279,6 +295,7 @@ impl Design {
                 }
                 match reversible {
                     Reversible::None => {}
+                    Reversible::Offset => a[CELL_COUNT] = 1.0,
                     Reversible::Linear => {
                         a[CELL_COUNT] = 1.0;
                         a[CELL_COUNT + 1] = x / LEVELS as f64 - 0.5;
@@ -330,6 +347,24 @@ impl Design {
                 self.ata[r * n + c] = self.ata[c * n + r];
             }
         }
+    }
+
+    /// [`Design::unexcited`], with the cells of `bands` also unexcited when their regressor
+    /// varies by less than [`crate::fit::BAND_EXCITATION`].
+    pub fn unexcited_with_bands(&self, bands: crate::fit::Bands) -> Vec<usize> {
+        self.column_range
+            .iter()
+            .enumerate()
+            .filter(|&(k, (lo, hi))| {
+                let threshold = if bands.contains(k) {
+                    crate::fit::BAND_EXCITATION
+                } else {
+                    EXCITATION_THRESHOLD
+                };
+                (hi - lo).is_nan() || hi - lo <= threshold
+            })
+            .map(|(k, _)| k)
+            .collect()
     }
 
     /// Cells whose regressor is constant over the fit rows (alpha-major indices).

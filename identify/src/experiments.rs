@@ -103,6 +103,17 @@ pub struct SplitDataset {
 }
 
 impl SplitDataset {
+    /// The field range every record (quasi-static and dynamic) reaches through a coil of factor
+    /// `c0` ([`crate::reach`]).
+    pub fn reach(&self, coil_factor_per_m: f64) -> Option<crate::reach::Reach> {
+        let currents = self
+            .quasi_static
+            .iter()
+            .chain(self.dynamic.iter().map(|d| &d.measurement))
+            .map(|m| &m.current_a[..]);
+        crate::reach::Reach::of_currents(currents, coil_factor_per_m)
+    }
+
     /// The quasi-static part as a [`maglab_dataset::data::Dataset`] (what the Preisach fit reads).
     pub fn quasi_static_dataset(&self) -> maglab_dataset::data::Dataset {
         maglab_dataset::data::Dataset {

@@ -86,17 +86,21 @@ pub enum Reversible {
     /// actuator model's reversible magnetization (`preisach.reversible_susceptibility`).
     Piecewise,
     /// [`Reversible::Piecewise`] without the offset: the actuator's `M = Γ[H] + R(H)`, whose
-    /// parameter file has no output offset (`maglab identify`).
+    /// parameter file has no output offset (`maglab identify` on a rod the coil saturates).
     PiecewiseNoOffset,
+    /// The masses and an output offset, no reversible part: the actuator's
+    /// `M = Γ[H] + M_off` on a rod the coil cannot saturate (`preisach.offset_a_per_m`).
+    Offset,
 }
 
 impl Reversible {
     /// CLI names.
-    pub const NAMES: [(&'static str, Reversible); 4] = [
+    pub const NAMES: [(&'static str, Reversible); 5] = [
         ("none", Reversible::None),
         ("linear", Reversible::Linear),
         ("piecewise", Reversible::Piecewise),
         ("piecewise-no-offset", Reversible::PiecewiseNoOffset),
+        ("offset", Reversible::Offset),
     ];
 
     /// Parses a CLI name.
@@ -128,7 +132,26 @@ impl Reversible {
             Reversible::Linear => 2,
             Reversible::Piecewise => 1 + LEVELS,
             Reversible::PiecewiseNoOffset => LEVELS,
+            Reversible::Offset => 1,
         }
+    }
+
+    /// The same part with an output offset (`none` → `offset`, `piecewise-no-offset` →
+    /// `piecewise`; the others have one).
+    pub fn with_offset(self) -> Self {
+        match self {
+            Reversible::None => Reversible::Offset,
+            Reversible::PiecewiseNoOffset => Reversible::Piecewise,
+            other => other,
+        }
+    }
+
+    /// Whether the part has an output offset (the unknown right after the masses).
+    pub fn has_offset(self) -> bool {
+        matches!(
+            self,
+            Reversible::Linear | Reversible::Piecewise | Reversible::Offset
+        )
     }
 
     /// Whether the part has a slope per grid interval.
@@ -165,6 +188,41 @@ pub struct FitOptions {
     /// part, a sensor reading high) is absorbed into masses summing past `M_s` instead of being
     /// left in the residual for the diagnosis. `None`: no bound.
     pub total_mass_at_most: Option<f64>,
+    /// Which outer intervals of the grid are one-way bands (a grid around the reach of a coil
+    /// that cannot saturate the rod, [`crate::reach`]).
+    pub bands: Bands,
+}
+
+/// The grid's outer intervals that collapse the Preisach plane beyond the coil's reach: the
+/// bottom interval holds every hysteron with `β < H_lo` (row `i = 0`: it can only switch up),
+/// the top one every hysteron with `α > H_hi` (column `j = L − 1`: only down).
+///
+/// A band cell's mass is the mass of a whole region of the plane, not a density that varies
+/// smoothly from its neighbours': band cells stay out of the smoothness term. A band cell the
+/// data never switch (the corner `(0, L − 1)` always: no reachable field switches it) cannot be
+/// told from the output offset, which carries it: such cells are fixed at 0. A band cell counts
+/// as excited only when the fit rows switch at least [`BAND_EXCITATION`] of it: its mass is seen
+/// only through that part, `δw ≈ σ / (2 Δf)` for a residual σ, so with the fit's residual of
+/// about 1 % of the output range a smaller `Δf` would let the mass take any value up to `M_s`,
+/// balanced by the offset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Bands {
+    /// Row 0 is the band `β < H_lo`.
+    pub low: bool,
+    /// Column `L − 1` is the band `α > H_hi`.
+    pub high: bool,
+}
+
+/// The regressor range (`2 Δf`, `Δf` the switched fraction) below which a band cell is taken as
+/// unexcited: `Δf` = 1 % of the cell ([`Bands`]).
+pub const BAND_EXCITATION: f64 = 0.02;
+
+impl Bands {
+    /// Whether cell `k` (alpha-major) lies in a band.
+    pub fn contains(self, k: usize) -> bool {
+        let (i, j) = crate::cell_of_index(k);
+        (self.low && i == 0) || (self.high && j == LEVELS - 1)
+    }
 }
 
 impl Default for FitOptions {
@@ -176,6 +234,7 @@ impl Default for FitOptions {
             unexcited: Unexcited::Regularized,
             row_stride: 1,
             total_mass_at_most: None,
+            bands: Bands::default(),
         }
     }
 }
@@ -194,6 +253,8 @@ pub struct FitResult {
     pub reversible_slopes: Vec<f64>,
     /// Cells the fit rows did not excite (alpha-major indices).
     pub unexcited: Vec<usize>,
+    /// What was done with them.
+    pub unexcited_treatment: Unexcited,
     /// Rows in the regression.
     pub rows: usize,
     /// Selected rows left out by the row stride.
@@ -267,7 +328,7 @@ pub fn fit(
         scale,
         options.row_stride,
     );
-    let unexcited = design.unexcited();
+    let unexcited = design.unexcited_with_bands(options.bands);
     let n = design.unknowns;
     let (h, g) = quadratic_form(grid, &design, prior, options, scale);
     let (p, q) = objective(&h, &g, n);
@@ -283,6 +344,7 @@ pub fn fit(
         slope,
         reversible_slopes,
         unexcited,
+        unexcited_treatment: options.unexcited,
         rows: design.rows,
         strided_out: design.strided_out,
         rms_residual,
@@ -380,6 +442,9 @@ fn quadratic_form(
     if options.smoothness > 0.0 {
         let c = options.smoothness / (pairs.len() as f64 * rho_ref * rho_ref);
         for &(a, b) in &pairs {
+            if options.bands.contains(a) || options.bands.contains(b) {
+                continue;
+            }
             let (ia, ib) = (1.0 / cell_area(a), 1.0 / cell_area(b));
             h[a * n + a] += c * ia * ia;
             h[b * n + b] += c * ib * ib;
@@ -446,21 +511,23 @@ fn objective(h: &[f64], g: &[f64], n: usize) -> (CscMatrix<f64>, Vec<f64>) {
     (p, q)
 }
 
-/// The cells whose mass is fixed (unexcited ones kept at the prior or at zero), normalized.
+/// The cells whose mass is fixed (unexcited ones kept at the prior or at zero; unexcited band
+/// cells at zero whatever the treatment, see [`Bands`]), normalized.
 fn fixed_cells(
     unexcited: &[usize],
     prior: Option<&[f64]>,
     options: &FitOptions,
     scale: f64,
 ) -> Vec<(usize, f64)> {
-    match options.unexcited {
-        Unexcited::KeepPrior => unexcited
-            .iter()
-            .map(|&k| (k, prior.map_or(0.0, |p| p[k]) / scale))
-            .collect(),
-        Unexcited::Zero => unexcited.iter().map(|&k| (k, 0.0)).collect(),
-        Unexcited::Regularized => Vec::new(),
-    }
+    unexcited
+        .iter()
+        .filter_map(|&k| match options.unexcited {
+            _ if options.bands.contains(k) => Some((k, 0.0)),
+            Unexcited::KeepPrior => Some((k, prior.map_or(0.0, |p| p[k]) / scale)),
+            Unexcited::Zero => Some((k, 0.0)),
+            Unexcited::Regularized => None,
+        })
+        .collect()
 }
 
 /// The constraints `A z + s = b`, `s` in the cones: the fixed cells (equalities, zero cone)
@@ -596,12 +663,13 @@ fn in_output_units(
     // Fixed cells get their exact value (not the solver's rescaled copy of it).
     for &(k, _) in fixed {
         weights[k] = match options.unexcited {
-            Unexcited::KeepPrior => prior.map_or(0.0, |p| p[k]),
+            Unexcited::KeepPrior if !options.bands.contains(k) => prior.map_or(0.0, |p| p[k]),
             _ => 0.0,
         };
     }
     let (offset, slope, reversible_slopes) = match options.reversible {
         Reversible::None => (0.0, 0.0, Vec::new()),
+        Reversible::Offset => (z[CELL_COUNT] * scale, 0.0, Vec::new()),
         Reversible::Linear => {
             let (c0, c1) = (z[CELL_COUNT] * scale, z[CELL_COUNT + 1] * scale);
             let span = grid.h_max - grid.h_min;

@@ -47,6 +47,7 @@ pub mod memory;
 pub mod model;
 pub mod pipeline;
 pub mod quality;
+pub mod reach;
 
 /// Number of input levels of the grid (the core's `LEVELS`).
 pub const LEVELS: usize = actuator_params::PREISACH_LEVELS;

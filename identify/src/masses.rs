@@ -16,9 +16,10 @@
 
 use crate::cell_of_index;
 use crate::design::{Experiment, Grid};
-use crate::fit::{fit, FitError, FitOptions, FitResult};
+use crate::fit::{fit, FitError, FitOptions, FitResult, Unexcited};
 use crate::magnetization::{magnetization, Branch, StaticModel};
 use crate::model::{nrmse, PreisachModel, FORMAT};
+use crate::reach::{banded_grid, identification_grid, prefers_banded, IdentificationGrid, Reach};
 use actuator_params::{ActuatorParams, Provenance};
 use maglab_dataset::data::Dataset;
 use maglab_dataset::StartState;
@@ -49,6 +50,9 @@ pub struct MassOptions {
     /// the sweep's masses must see the same timing as the model they go into, else the few
     /// tens of µs go into the loops' width, and the minor loops the sines run on come out wrong.
     pub current_shift_samples: f64,
+    /// The field range of the whole dataset (quasi-static and dynamic records), which sets the
+    /// grid ([`crate::reach`]); `None`: the range of the records given.
+    pub reach: Option<Reach>,
 }
 
 /// `x` read `shift` samples later: linear between samples, held at the ends.
@@ -312,11 +316,14 @@ pub fn auto_branch(current_a: &[f64]) -> Branch {
     }
 }
 
-/// The initial memory of an undocumented file, from its field `h`: a record that starts beyond
-/// an end of the grid saturates the memory itself; a closed record (first and last samples
-/// within 2 % of the field range, at least one reversal) is a period of a periodic loop; any
-/// other starts from a demagnetization at zero current.
-pub fn auto_initial(h: &[f64], grid: &Grid) -> StartState {
+/// The initial memory of an undocumented file, from its field `h` and displacement `y` (white
+/// noise `noise_m`): a record that starts beyond an end of the grid saturates the memory itself;
+/// a closed record (first and last samples within 2 % of the field range, at least one
+/// reversal) is a period of a periodic loop — unless it holds two periods and its first differs
+/// from its second ([`first_period_is_a_transient`]): then it was switched on from a
+/// demagnetized rod and its first period is the way onto the loop. Any other record starts from
+/// a demagnetization at zero current.
+pub fn auto_initial(h: &[f64], y: &[f64], noise_m: f64, grid: &Grid) -> StartState {
     let (Some(&first), Some(&last)) = (h.first(), h.last()) else {
         return StartState::Demagnetized;
     };
@@ -332,11 +339,62 @@ pub fn auto_initial(h: &[f64], grid: &Grid) -> StartState {
             (a.min(v), b.max(v))
         });
     let reversal = h.windows(3).any(|w| (w[1] - w[0]) * (w[2] - w[1]) < 0.0);
-    if reversal && (first - last).abs() <= 0.02 * (hi - lo) {
+    let closed = reversal && (first - last).abs() <= 0.02 * (hi - lo);
+    if closed && !first_period_is_a_transient(h, y, noise_m) {
         StartState::Periodic
     } else {
         StartState::Demagnetized
     }
+}
+
+/// Whether the displacement over the first period of the input differs from the second by more
+/// than two noisy copies of one loop would: RMS difference above `max(3 √2 σ, 10⁻³ of the
+/// displacement's range)` (the difference of two records with white noise σ has RMS `√2 σ`; the
+/// floor covers noise-free records). The period ends where the input first returns to its first
+/// value moving the way it started, after a reversal. `false` when the record holds less than
+/// two periods (nothing to compare).
+pub fn first_period_is_a_transient(h: &[f64], y: &[f64], noise_m: f64) -> bool {
+    let n = h.len().min(y.len());
+    let Some(&h0) = h.first() else {
+        return false;
+    };
+    let Some(direction) = h
+        .iter()
+        .map(|&v| v - h0)
+        .find(|d| *d != 0.0)
+        .map(f64::signum)
+    else {
+        return false;
+    };
+    let mut reversed = false;
+    let mut period = None;
+    for t in 1..n {
+        let step = h[t] - h[t - 1];
+        if step * direction < 0.0 {
+            reversed = true;
+        }
+        let crossed = (h[t - 1] - h0) * direction < 0.0 && (h[t] - h0) * direction >= 0.0;
+        if reversed && crossed && step * direction > 0.0 {
+            period = Some(t);
+            break;
+        }
+    }
+    let Some(p) = period.filter(|&p| 2 * p <= n) else {
+        return false;
+    };
+    let (lo, hi) = y[..2 * p]
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let rms = (y[..p]
+        .iter()
+        .zip(&y[p..2 * p])
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        / p as f64)
+        .sqrt();
+    rms > (3.0 * std::f64::consts::SQRT_2 * noise_m).max(1e-3 * (hi - lo))
 }
 
 /// The Preisach memory a documented bench start leaves (`switch-on-demagnetized` is
@@ -358,15 +416,61 @@ pub fn identify_masses(
     options: &MassOptions,
 ) -> Result<MassIdentification, FitError> {
     let a = &base.actuator;
+    let base_grid =
+        Grid::of_params(&base.preisach).map_err(|e| FitError(format!("{base_name}: {e}")))?;
+    let reach = options
+        .reach
+        .or_else(|| {
+            Reach::of_currents(
+                dataset.measurements.iter().map(|m| &m.current_a[..]),
+                a.coil_factor_per_m,
+            )
+        })
+        .ok_or_else(|| FitError(format!("{}: no finite current", dataset.dir.display())))?;
+    let chosen = identification_grid(base_grid, reach);
+    let on_base = identify_on_grid(dataset, base, base_name, options, chosen)?;
+    if chosen.has_bands() {
+        return Ok(on_base);
+    }
+    // The records cover the base grid: whether the coil saturates the rod there is for the data
+    // to say. The banded grid is the larger model (its bands empty, it is the base grid's plane
+    // on slightly coarser cells); it is kept when it explains the quasi-static rows better by
+    // more than its extra parameters are worth (`prefers_banded`).
+    let Some(banded) = banded_grid(base_grid, reach) else {
+        return Ok(on_base);
+    };
+    let on_bands = identify_on_grid(dataset, base, base_name, options, banded)?;
+    Ok(if prefers_banded(&on_base.fit, &on_bands.fit) {
+        on_bands
+    } else {
+        on_base
+    })
+}
+
+/// The mass identification on one grid.
+fn identify_on_grid(
+    dataset: &Dataset,
+    base: &ActuatorParams,
+    base_name: &str,
+    options: &MassOptions,
+    mut chosen: IdentificationGrid,
+) -> Result<MassIdentification, FitError> {
+    let a = &base.actuator;
     let model = StaticModel {
         rod_length_m: a.rod_length_m,
         saturation_magnetostriction: a.saturation_magnetostriction,
         saturation_magnetization_a_per_m: a.saturation_magnetization_a_per_m,
     };
-    let grid =
+    let base_grid =
         Grid::of_params(&base.preisach).map_err(|e| FitError(format!("{base_name}: {e}")))?;
+    // A documented `conditioned` start is the sweep the base file's firmware ran.
+    let sweep = maglab_model::model::Nominal::from_params(base)
+        .conditioning_sweep_a_per_m
+        .map(|(lo, hi)| (f64::from(lo), f64::from(hi)));
+    chosen.grid = chosen.grid.with_conditioning(sweep);
+    let grid = chosen.grid;
     let zero_band_m = options.zero_band_fraction * model.stroke_m();
-    let sensor_offset_m = displacement_offset_m(dataset, a.coil_factor_per_m, &grid);
+    let sensor_offset_m = displacement_offset_m(dataset, a.coil_factor_per_m, &base_grid);
     let records: Vec<Record> = dataset
         .measurements
         .iter()
@@ -375,6 +479,7 @@ pub fn identify_masses(
                 base,
                 model: &model,
                 grid: &grid,
+                reach: chosen.reach,
                 zero_band_m,
                 sensor_offset_m: sensor_offset_m.unwrap_or(0.0),
                 options,
@@ -395,20 +500,22 @@ pub fn identify_masses(
             weights: None,
         })
         .collect();
-    let result = fit_masses(&grid, &experiments, base, options, &model)?;
+    let fit_options = fit_options(&chosen, options, &model);
+    let prior = (!chosen.has_bands()).then_some(&base.preisach.weights_a_per_m[..]);
+    let result = fit(&grid, &experiments, prior, &fit_options)?;
     let files = file_reports(
         dataset,
         &records,
         &rows_below_floor,
         &grid,
         &result,
-        options,
+        &fit_options,
         &model,
     );
     let choices: Vec<Value> = records.iter().map(|r| r.choice.clone()).collect();
     let params = identified_params(
         (dataset, base, base_name),
-        options,
+        (&chosen, options, &fit_options),
         &result,
         &files,
         &choices,
@@ -446,6 +553,8 @@ struct RecordSetting<'a> {
     base: &'a ActuatorParams,
     model: &'a StaticModel,
     grid: &'a Grid,
+    /// The reach of a grid with bands: the lag-corrected field is kept inside it.
+    reach: Option<Reach>,
     zero_band_m: f64,
     sensor_offset_m: f64,
     options: &'a MassOptions,
@@ -468,7 +577,6 @@ impl RecordSetting<'_> {
             .collect();
         let noise_m = displacement_noise_m(&y);
         let gain = correction.map_or(1.0, |c| c.noise_gain(m.step_s));
-        let floor_m = fit_floor_m(self.zero_band_m, gain * noise_m, self.model.stroke_m());
         let displacement = match &correction {
             Some(c) => c.displacement(&y, m.step_s),
             None => y,
@@ -486,12 +594,23 @@ impl RecordSetting<'_> {
                 .and_then(documented_initial)
             {
                 Some(i) => (i, "documented"),
-                None => (auto_initial(&h_static, self.grid), "estimated"),
+                None => (
+                    auto_initial(&h_static, &displacement, noise_m, self.grid),
+                    "estimated",
+                ),
             },
         };
         let branch = options.branch.unwrap_or_else(|| auto_branch(&current_a));
+        // The zero band guards the sign of M; with `positive` there is no sign to guess, only
+        // the square root's noise bias sets the floor (on a rod the coil cannot saturate the
+        // whole motion may lie within a few zero bands of rest).
+        let band_m = match branch {
+            Branch::Positive => 0.0,
+            Branch::Monotone => self.zero_band_m,
+        };
+        let floor_m = fit_floor_m(band_m, gain * noise_m, self.model.stroke_m());
         let initial_sign: i8 = match initial {
-            StartState::NegativeSaturation => -1,
+            StartState::NegativeSaturation | StartState::Conditioned => -1,
             StartState::PositiveSaturation => 1,
             _ => 0,
         };
@@ -503,10 +622,19 @@ impl RecordSetting<'_> {
             initial_sign,
             self.zero_band_m,
         );
-        let field = match &correction {
+        let mut field = match &correction {
             Some(c) => c.field(&current_a, &conversion.m_a_per_m, m.step_s),
             None => h_static,
         };
+        // Eq. (4) moves H toward c0 I at every instant (H' = c1 (I − H/c0) / (1 + dM/dH) with
+        // dM/dH >= 0), so H never leaves the range of c0 I. The first-order correction can
+        // overshoot it by its noise; inside a band that would fake an excitation of cells the
+        // coil never switches, which only the offset could balance.
+        if let Some(r) = self.reach {
+            for h in &mut field {
+                *h = h.clamp(r.lo_a_per_m, r.hi_a_per_m);
+            }
+        }
         Record {
             choice: json!({"file": name, "initial_state": initial.name(), "initial_state_from": how, "branch": branch.name()}),
             label: name,
@@ -553,18 +681,20 @@ fn select_rows(
         .unzip()
 }
 
-/// The mass fit, the base masses as prior. With a reversible part the masses saturate at M_s
+/// The fit's options on the chosen grid. With a reversible part the masses saturate at M_s
 /// (Σ masses <= M_s) and the part carries the magnetization beyond it (the paper's model alone
-/// keeps its masses free: what they absorb past M_s is what `--reversible auto` looks at).
-fn fit_masses(
-    grid: &Grid,
-    experiments: &[Experiment<'_>],
-    base: &ActuatorParams,
+/// keeps its masses free: what they absorb past M_s is what `--reversible auto` looks at). On a
+/// grid with one-way bands ([`crate::reach`]) the output gets its offset `M_off`, the masses have
+/// no prior (the base grid's cells are not these) and sum to at most M_s (they are parts of the
+/// rod's plane), and unexcited cells the base would have kept are left to the regularization
+/// (band cells: fixed at 0, [`crate::fit::Bands`]).
+fn fit_options(
+    chosen: &IdentificationGrid,
     options: &MassOptions,
     model: &StaticModel,
-) -> Result<FitResult, FitError> {
+) -> FitOptions {
     let ms = model.saturation_magnetization_a_per_m;
-    let fit_options = FitOptions {
+    let mut fit_options = FitOptions {
         total_mass_at_most: if options.fit.reversible.is_piecewise() {
             Some(options.fit.total_mass_at_most.map_or(ms, |cap| cap.min(ms)))
         } else {
@@ -572,12 +702,17 @@ fn fit_masses(
         },
         ..options.fit
     };
-    fit(
-        grid,
-        experiments,
-        Some(&base.preisach.weights_a_per_m),
-        &fit_options,
-    )
+    if chosen.has_bands() {
+        fit_options.reversible = fit_options.reversible.with_offset();
+        fit_options.bands = chosen.bands;
+        // The cells are parts of the rod's plane, whose whole mass is at most M_s (|M| <= M_s).
+        fit_options.total_mass_at_most =
+            Some(fit_options.total_mass_at_most.map_or(ms, |cap| cap.min(ms)));
+        if fit_options.unexcited == Unexcited::KeepPrior {
+            fit_options.unexcited = Unexcited::Regularized;
+        }
+    }
+    fit_options
 }
 
 /// Each record's report: its conversion and how the identified model predicts it.
@@ -587,7 +722,7 @@ fn file_reports(
     rows_below_floor: &[usize],
     grid: &Grid,
     result: &FitResult,
-    options: &MassOptions,
+    fit_options: &FitOptions,
     model: &StaticModel,
 ) -> Vec<FileReport> {
     let generic = PreisachModel {
@@ -599,10 +734,9 @@ fn file_reports(
         h_max: grid.h_max,
         grid_lines: grid.lines.map(|l| l.to_vec()),
         weights: result.weights.clone(),
-        offset: 0.0,
+        offset: result.offset,
         slope: 0.0,
-        reversible_slopes: options
-            .fit
+        reversible_slopes: fit_options
             .reversible
             .is_piecewise()
             .then(|| result.reversible_slopes.clone()),
@@ -610,6 +744,7 @@ fn file_reports(
             .first()
             .map(|r| r.initial)
             .unwrap_or(StartState::NegativeSaturation),
+        closed_loops_periodic: false,
         provenance: Value::Null,
     };
     records
@@ -637,23 +772,37 @@ fn file_reports(
         .collect()
 }
 
-/// The base file with the identified masses (and reversible part) and the provenance, validated.
+/// The base file with the identified masses (and reversible part; on a grid with bands the grid,
+/// the reach and the offset) and the provenance, validated.
 fn identified_params(
     (dataset, base, base_name): (&Dataset, &ActuatorParams, &str),
-    options: &MassOptions,
+    (chosen, options, fit_options): (&IdentificationGrid, &MassOptions, &FitOptions),
     result: &FitResult,
     files: &[FileReport],
     choices: &[Value],
     sensor_offset_m: Option<f64>,
 ) -> Result<ActuatorParams, FitError> {
     let mut params = base.clone();
-    params.preisach.weights_a_per_m = result.weights.clone();
-    params.preisach.reversible_susceptibility = options
-        .fit
+    let p = &mut params.preisach;
+    p.weights_a_per_m = result.weights.clone();
+    p.reversible_susceptibility = fit_options
         .reversible
         .is_piecewise()
         .then(|| result.reversible_slopes.clone());
-    let mut prov = provenance(dataset, base, base_name, options, result, files, choices);
+    if let Some(reach) = chosen.reach {
+        p.h_min_a_per_m = chosen.grid.h_min;
+        p.h_max_a_per_m = chosen.grid.h_max;
+        p.grid_lines_a_per_m = chosen.grid.lines.map(|l| l.to_vec());
+        p.reach_a_per_m = Some(vec![reach.lo_a_per_m, reach.hi_a_per_m]);
+        p.offset_a_per_m = result.offset;
+    }
+    let mut prov = provenance(
+        (dataset, base, base_name),
+        (options, fit_options),
+        result,
+        files,
+        choices,
+    );
     prov.details.insert(
         "sensor_offset_m".into(),
         json!({
@@ -666,6 +815,8 @@ fn identified_params(
             },
         }),
     );
+    prov.details
+        .insert("grid".into(), grid_provenance(chosen, base));
     params.provenance = prov;
     params
         .validate("identified parameters")
@@ -673,11 +824,58 @@ fn identified_params(
     Ok(params)
 }
 
+/// The file's fields the mass fit identified.
+fn identified_fields(fit_options: &FitOptions) -> Vec<&'static str> {
+    let mut fields = vec!["preisach.weights_a_per_m"];
+    if fit_options.reversible.is_piecewise() {
+        fields.push("preisach.reversible_susceptibility");
+    }
+    if fit_options.bands != Default::default() {
+        fields.extend([
+            "preisach.h_min_a_per_m",
+            "preisach.h_max_a_per_m",
+            "preisach.reach_a_per_m",
+            "preisach.offset_a_per_m",
+        ]);
+    }
+    fields
+}
+
+/// How the grid was chosen, for the provenance.
+fn grid_provenance(chosen: &IdentificationGrid, base: &ActuatorParams) -> Value {
+    match chosen.reach {
+        None => json!({
+            "choice": "base",
+            "why": "the records reach both ends of the base file's grid: the coil saturates the rod there",
+        }),
+        Some(reach)
+            if reach.lo_a_per_m <= base.preisach.h_min_a_per_m
+                && reach.hi_a_per_m >= base.preisach.h_max_a_per_m =>
+        {
+            json!({
+                "choice": "reach",
+                "reach_a_per_m": [reach.lo_a_per_m, reach.hi_a_per_m],
+                "base_range_a_per_m": [base.preisach.h_min_a_per_m, base.preisach.h_max_a_per_m],
+                "bands": {"low": true, "high": true},
+                "why": "the records cover the base file's grid but the rod was not saturated there:                         the fit with a one-way band beyond each end of the reach and the offset                         preisach.offset_a_per_m explains the quasi-static rows better than the base                         grid by more than the Bayesian information criterion charges for the band                         cells (docs/model.md)",
+            })
+        }
+        Some(reach) => json!({
+            "choice": "reach",
+            "reach_a_per_m": [reach.lo_a_per_m, reach.hi_a_per_m],
+            "base_range_a_per_m": [base.preisach.h_min_a_per_m, base.preisach.h_max_a_per_m],
+            "bands": {"low": chosen.bands.low, "high": chosen.bands.high},
+            "why": "the base file's grid extends beyond the field the records reach (c0 times their \
+                    current extremes): the grid divides the reach, a band interval beyond each \
+                    unreached end holds the one-way hysterons there, and the output offset \
+                    preisach.offset_a_per_m the part no reachable field switches (docs/model.md)",
+        }),
+    }
+}
+
 fn provenance(
-    dataset: &Dataset,
-    base: &ActuatorParams,
-    base_name: &str,
-    options: &MassOptions,
+    (dataset, base, base_name): (&Dataset, &ActuatorParams, &str),
+    (options, fit_options): (&MassOptions, &FitOptions),
     result: &FitResult,
     files: &[FileReport],
     choices: &[Value],
@@ -717,14 +915,7 @@ fn provenance(
     d.insert("base_parameters".into(), json!(base_name));
     d.insert(
         actuator_params::Provenance::IDENTIFIED.into(),
-        if options.fit.reversible.is_piecewise() {
-            json!([
-                "preisach.weights_a_per_m",
-                "preisach.reversible_susceptibility"
-            ])
-        } else {
-            json!(["preisach.weights_a_per_m"])
-        },
+        json!(identified_fields(fit_options)),
     );
     d.insert(
         "not_identified".into(),
@@ -755,9 +946,9 @@ fn provenance(
             ),
             "regression": "M = sum_k w_k (2 f_k - 1), f_k = exact fraction of cell k in P+, \
                            w >= 0, clarabel QP",
-            "smoothness": options.fit.smoothness,
-            "ridge_toward_base": options.fit.ridge,
-            "row_stride": options.fit.row_stride,
+            "smoothness": fit_options.smoothness,
+            "ridge_toward_base": fit_options.ridge,
+            "row_stride": fit_options.row_stride,
         }),
     );
     d.insert(
@@ -777,7 +968,7 @@ fn provenance(
         "unexcited_cells".into(),
         json!({
             "count": result.unexcited.len(),
-            "treatment": options.fit.unexcited.name(),
+            "treatment": fit_options.unexcited.name(),
             "meaning": "cells whose P+ fraction never changed over the data: the data do not \
                         determine their masses; `keep-prior` = base file's mass kept, `zero` = set \
                         to 0, `regularized` = set by the smoothness/ridge terms only",

@@ -104,7 +104,11 @@ impl Memory {
     /// preconditioning period). Every state but the saturations is a demagnetization there.
     pub fn initial(levels: usize, state: StartState, centre_x: f64) -> Self {
         match state {
-            StartState::NegativeSaturation => Self::negative_saturation(levels),
+            // `conditioned` starts from negative saturation; the caller then applies the sweep
+            // (`crate::design::Grid::conditioning`).
+            StartState::NegativeSaturation | StartState::Conditioned => {
+                Self::negative_saturation(levels)
+            }
             StartState::PositiveSaturation => Self::positive_saturation(levels),
             _ => Self::demagnetized(levels, centre_x),
         }

@@ -51,8 +51,13 @@ pub struct PreisachModel {
     /// unit, `>= 0`; [`crate::fit::Reversible::Piecewise`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reversible_slopes: Option<Vec<f64>>,
-    /// Initial memory assumed for each experiment.
+    /// Initial memory assumed for each experiment (with [`PreisachModel::closed_loops_periodic`],
+    /// for each experiment that is not a closed loop).
     pub initial_state: StartState,
+    /// `--initial auto`: each experiment is judged on its own, a closed loop
+    /// ([`is_closed_loop`]) starting `periodic` and the others from `initial_state`.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub closed_loops_periodic: bool,
     /// How it was fitted (data, options, residuals, unexcited cells).
     pub provenance: serde_json::Value,
 }
@@ -65,6 +70,12 @@ impl PreisachModel {
             Some(Ok(grid)) => grid,
             _ => Grid::uniform(self.h_min, self.h_max),
         }
+    }
+
+    /// The initial memory of an experiment: `initial_state`, or `periodic` for a closed loop when
+    /// [`PreisachModel::closed_loops_periodic`].
+    pub fn initial_for(&self, series: &crate::columns::Series) -> StartState {
+        initial_of(series, self.initial_state, self.closed_loops_periodic)
     }
 
     /// Predicts the output for an input sequence from `initial`.
@@ -104,6 +115,7 @@ impl PreisachModel {
             slope: 0.0,
             reversible_slopes: None,
             initial_state,
+            closed_loops_periodic: false,
             provenance: serde_json::Value::Null,
         }
     }
@@ -274,7 +286,7 @@ pub fn nrmse(predicted: &[f64], measured: &[f64], selected: Option<&[bool]>) -> 
 pub const DEFAULT_RANGE_MARGIN: f64 = 0.02;
 
 /// Fits a generic model to the selected rows of `table` (every experiment starts from
-/// `initial`). The grid is `range` if given, else the input range of the whole table (all rows,
+/// `initial`, or, with `closed_loops_periodic`, each closed loop `periodic`: [`is_closed_loop`]). The grid is `range` if given, else the input range of the whole table (all rows,
 /// selected or not, so that prediction on the other rows stays inside the grid) widened by
 /// `margin` on each side. `lines` (when `Auto`) and `auto_smoothness` (among
 /// [`SMOOTHNESS_CANDIDATES`]) are chosen by [`validate_choices`].
@@ -285,7 +297,7 @@ pub fn fit_table(
     spec: &crate::columns::ColumnSpec,
     range: Option<(f64, f64)>,
     margin: f64,
-    initial: StartState,
+    (initial, closed_loops_periodic): (StartState, bool),
     lines: crate::lines::LineChoice,
     auto_smoothness: bool,
     options: &crate::fit::FitOptions,
@@ -312,7 +324,7 @@ pub fn fit_table(
             input: &s.input,
             output: &s.output,
             selected: &s.selected,
-            initial,
+            initial: initial_of(s, initial, closed_loops_periodic),
             weights: None,
         })
         .collect();
@@ -358,6 +370,10 @@ pub fn fit_table(
             "label": s.label, "rows": s.input.len(), "fit_rows": s.selected_count()
         })).collect::<Vec<_>>(),
         "row_filter": spec.filter.describe(),
+        "initial_states": table.series.iter().map(|s| serde_json::json!({
+            "label": s.label,
+            "initial_state": initial_of(s, initial, closed_loops_periodic).name(),
+        })).collect::<Vec<_>>(),
         "group_column": spec.group,
         "range_margin": if range.is_some() { None } else { Some(margin) },
         "grid_lines": lines.name(),
@@ -402,6 +418,7 @@ pub fn fit_table(
             .is_piecewise()
             .then(|| result.reversible_slopes.clone()),
         initial_state: initial,
+        closed_loops_periodic,
         provenance,
     };
     Ok((model, result))
@@ -503,7 +520,7 @@ pub fn predict_table(
     let predictions: Vec<Vec<f64>> = table
         .series
         .iter()
-        .map(|s| model.predict(&s.input, model.initial_state))
+        .map(|s| model.predict(&s.input, model.initial_for(s)))
         .collect();
     let mut pred = Vec::new();
     let mut meas = Vec::new();
@@ -517,4 +534,96 @@ pub fn predict_table(
     }
     let score = nrmse(&pred, &meas, None);
     (predictions, score)
+}
+
+/// Whether an experiment is a closed loop — one period of a periodic steady state: its last row
+/// within 2 % of its input and output ranges of its first. Judged on the experiment's selected
+/// rows when it has any (the rows a fit uses), else on all of them.
+pub fn is_closed_loop(series: &crate::columns::Series) -> bool {
+    let rows: Vec<(f64, f64)> = if series.selected.iter().any(|&s| s) {
+        series
+            .input
+            .iter()
+            .zip(&series.output)
+            .zip(&series.selected)
+            .filter(|(_, &s)| s)
+            .map(|((&u, &y), _)| (u, y))
+            .collect()
+    } else {
+        series
+            .input
+            .iter()
+            .copied()
+            .zip(series.output.iter().copied())
+            .collect()
+    };
+    let span = |v: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(x), b.max(x))
+        });
+        hi - lo
+    };
+    match (rows.first(), rows.last()) {
+        (Some(&(u0, y0)), Some(&(u1, y1))) => {
+            let su = span(&mut rows.iter().map(|r| r.0));
+            let sy = span(&mut rows.iter().map(|r| r.1));
+            su > 0.0 && (u1 - u0).abs() <= 0.02 * su && (y1 - y0).abs() <= 0.02 * sy.max(1e-300)
+        }
+        _ => false,
+    }
+}
+
+/// The initial memory of `series`: `periodic` for a closed loop when `closed_loops_periodic`,
+/// else `initial`.
+fn initial_of(
+    series: &crate::columns::Series,
+    initial: StartState,
+    closed_loops_periodic: bool,
+) -> StartState {
+    if closed_loops_periodic && is_closed_loop(series) {
+        StartState::Periodic
+    } else {
+        initial
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::columns::Series;
+
+    fn series(label: &str, input: Vec<f64>, output: Vec<f64>, selected: Vec<bool>) -> Series {
+        Series {
+            label: label.into(),
+            lines: (1..=input.len() as u64).collect(),
+            input,
+            output,
+            selected,
+        }
+    }
+
+    #[test]
+    fn each_experiment_is_judged_on_its_own_fit_rows() {
+        let t: Vec<f64> = (0..=200).map(|k| k as f64 / 200.0).collect();
+        let cycle = |x: &f64| (2.0 * std::f64::consts::PI * x).sin();
+        let loop_in: Vec<f64> = t.iter().map(cycle).collect();
+        let loop_out: Vec<f64> = t.iter().map(|x| cycle(&(x - 0.05))).collect();
+        let all = vec![true; t.len()];
+        let closed = series("closed", loop_in.clone(), loop_out.clone(), all.clone());
+        // A first magnetization curve: from zero up, it does not return.
+        let ramp = series("ramp", t.clone(), t.iter().map(|x| x * x).collect(), all);
+        // A closed loop whose fit rows are only its first half is not one on those rows.
+        let half: Vec<bool> = (0..t.len()).map(|k| k <= 100).collect();
+        let half_selected = series("half", loop_in, loop_out, half);
+        let mut none_selected = ramp.clone();
+        none_selected.selected = vec![false; t.len()];
+        assert!(is_closed_loop(&closed));
+        assert!(!is_closed_loop(&ramp));
+        assert!(!is_closed_loop(&half_selected));
+        assert!(!is_closed_loop(&none_selected), "judged on all rows");
+        let demag = StartState::DemagnetizedAtFirstInput;
+        assert_eq!(initial_of(&closed, demag, true), StartState::Periodic);
+        assert_eq!(initial_of(&ramp, demag, true), demag);
+        assert_eq!(initial_of(&closed, demag, false), demag);
+    }
 }

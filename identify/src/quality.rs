@@ -35,6 +35,24 @@ pub const DYNAMIC_NRMSE_LIMIT: f64 = 0.05;
 /// the bench plant).
 pub const MASS_SUM_RANGE: [f64; 2] = [0.5, 1.5];
 
+/// What the masses are checked against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Masses {
+    /// A rod the coil saturates: the masses sum to about `M_s` ([`MASS_SUM_RANGE`]).
+    Saturating {
+        /// Σ w, A/m.
+        sum_a_per_m: f64,
+    },
+    /// A grid around the reach: the masses cover what the coil switches, the offset the rest;
+    /// only `|M_off| + Σ w` beyond `M_s` is wrong.
+    Reach {
+        /// Σ w, A/m.
+        sum_a_per_m: f64,
+        /// `M_off`, A/m.
+        offset_a_per_m: f64,
+    },
+}
+
 /// One dynamic experiment's fit, as far as the checks need it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DynamicResidual {
@@ -53,7 +71,7 @@ pub struct DynamicResidual {
 /// diagnosis holds them out). Empty when everything is within the limits.
 pub fn warnings(
     files: &[FileReport],
-    mass_sum_a_per_m: f64,
+    masses: Masses,
     saturation_a_per_m: f64,
     dynamic: &[DynamicResidual],
     fitted_up_to_hz: Option<f64>,
@@ -78,13 +96,30 @@ pub fn warnings(
             ));
         }
     }
-    let ratio = mass_sum_a_per_m / saturation_a_per_m;
-    if !(MASS_SUM_RANGE[0]..=MASS_SUM_RANGE[1]).contains(&ratio) {
-        out.push(format!(
-            "the identified masses sum to {:.2} x M_s (expected {}-{}): the loop of the file does \
-             not saturate where the data do",
-            ratio, MASS_SUM_RANGE[0], MASS_SUM_RANGE[1]
-        ));
+    match masses {
+        Masses::Saturating { sum_a_per_m } => {
+            let ratio = sum_a_per_m / saturation_a_per_m;
+            if !(MASS_SUM_RANGE[0]..=MASS_SUM_RANGE[1]).contains(&ratio) {
+                out.push(format!(
+                    "the identified masses sum to {:.2} x M_s (expected {}-{}): the loop of the \
+                     file does not saturate where the data do",
+                    ratio, MASS_SUM_RANGE[0], MASS_SUM_RANGE[1]
+                ));
+            }
+        }
+        Masses::Reach {
+            sum_a_per_m,
+            offset_a_per_m,
+        } => {
+            let ratio = (sum_a_per_m + offset_a_per_m.abs()) / saturation_a_per_m;
+            if ratio > MASS_SUM_RANGE[1] {
+                out.push(format!(
+                    "the model's magnetization reaches {:.2} x M_s (|offset| + sum of masses; at \
+                     most {} expected): the file's M_s or stroke constants do not match this rod",
+                    ratio, MASS_SUM_RANGE[1]
+                ));
+            }
+        }
     }
     let fitted: Vec<&DynamicResidual> = dynamic
         .iter()

@@ -63,13 +63,14 @@ fn an_almost_anhysteretic_loop_is_carried_by_the_reversible_part() {
             unexcited: Unexcited::Regularized,
             row_stride: 1,
             total_mass_at_most: None,
+            bands: Default::default(),
         };
         let (model, _) = fit_table(
             &table,
             &spec,
             None,
             DEFAULT_RANGE_MARGIN,
-            StartState::Periodic,
+            (StartState::Periodic, false),
             LineChoice::Auto,
             true,
             &options,

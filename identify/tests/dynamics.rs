@@ -207,6 +207,7 @@ fn phase_lag_scheme_recovers_eddy_resistance_and_damping() {
             documented: None,
             lag_correction: None,
             current_shift_samples: 0.0,
+            reach: None,
             zero_band_fraction: 0.01,
             fit: FitOptions {
                 unexcited: Unexcited::KeepPrior,

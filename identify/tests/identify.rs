@@ -82,6 +82,7 @@ fn forc_options(shift: f64) -> MassOptions {
         documented: None,
         lag_correction: None,
         current_shift_samples: shift,
+        reach: None,
         zero_band_fraction: 0.01,
         fit: FitOptions {
             unexcited: Unexcited::KeepPrior,
@@ -122,9 +123,11 @@ fn forc_dataset_identifies_to_a_valid_parameter_file() {
 }
 
 #[test]
-fn biased_data_reports_the_cells_it_cannot_reach() {
+fn biased_data_are_identified_on_the_reach_with_a_band_below_it() {
     // DC-biased quasi-static current I >= 0 from the demagnetized state: M >= 0 (order
-    // preservation), the positive branch is exact, but cells with β below the bias never switch.
+    // preservation), the positive branch is exact, but the hysterons with β below H = 0 never
+    // switch down. The grid becomes the reach [0, h_max] with a band below it (the hysterons
+    // with β < 0, which can only switch up), the rest an offset: the model predicts the data.
     let p = actuator_params::paper_defaults();
     let (h_min, h_max) = (p.preisach.h_min_a_per_m, p.preisach.h_max_a_per_m);
     let reference = RelayPreisach::new(&p.preisach.weights_a_per_m, h_min, h_max, 8).unwrap();
@@ -155,10 +158,11 @@ fn biased_data_reports_the_cells_it_cannot_reach() {
         "paper defaults",
         &MassOptions {
             branch: Some(Branch::Positive),
-            initial: Some(StartState::DemagnetizedAtFirstInput),
+            initial: Some(StartState::Demagnetized),
             documented: None,
             lag_correction: None,
             current_shift_samples: 0.0,
+            reach: None,
             zero_band_fraction: 0.01,
             fit: FitOptions {
                 unexcited: Unexcited::KeepPrior,
@@ -167,13 +171,25 @@ fn biased_data_reports_the_cells_it_cannot_reach() {
         },
     )
     .unwrap();
-    let unexcited = &id.fit.unexcited;
-    println!("biased data: {} unexcited cells", unexcited.len());
-    // Every cell entirely below H = 0 in α (α-interval j <= 11) never switches: at least those
-    // 78 cells; they keep the prior masses exactly.
-    assert!(unexcited.len() >= 78);
-    for &k in unexcited {
-        assert_eq!(id.fit.weights[k], p.preisach.weights_a_per_m[k]);
+    let pre = &id.params.preisach;
+    let reach = pre.reach_a_per_m.as_deref().expect("a reach");
+    assert!(
+        reach[0].abs() < 1e-6 && (reach[1] - h_max).abs() < 1e-6 * h_max,
+        "{reach:?}"
+    );
+    // Low band only: the data reach the grid's top.
+    assert!(pre.h_min_a_per_m < 0.0 && (pre.h_max_a_per_m - h_max).abs() < 1e-6 * h_max);
+    // Unexcited cells: band cells (fixed at 0) or regularized, never the base grid's prior.
+    println!(
+        "biased data: {} unexcited cells, offset {:.0} A/m",
+        id.fit.unexcited.len(),
+        pre.offset_a_per_m
+    );
+    for &k in &id.fit.unexcited {
+        let (i, _) = maglab_identify::cell_of_index(k);
+        if i == 0 {
+            assert_eq!(id.fit.weights[k], 0.0);
+        }
     }
     assert!(id.files[0].nrmse_magnetization.unwrap() <= 0.01);
 }

@@ -306,18 +306,40 @@ mod quality {
     fn a_model_that_fits_gets_no_warning() {
         // The figures of a case without an effect (seed 1, case 4).
         let dynamic = [sine(20.0, 0.029), sine(100.0, 0.012), sine(400.0, 0.3)];
-        let w = warnings(&[file(0.003, 160)], 7.87e5, 7.87e5, &dynamic, Some(200.0));
+        let w = warnings(
+            &[file(0.003, 160)],
+            Masses::Saturating {
+                sum_a_per_m: 7.87e5,
+            },
+            7.87e5,
+            &dynamic,
+            Some(200.0),
+        );
         assert!(w.is_empty(), "{w:?}");
     }
 
     #[test]
     fn each_limit_is_named_when_crossed() {
-        let w = warnings(&[file(0.77, 710)], 1.2e5, 7.87e5, &[], None);
+        let w = warnings(
+            &[file(0.77, 710)],
+            Masses::Saturating { sum_a_per_m: 1.2e5 },
+            7.87e5,
+            &[],
+            None,
+        );
         assert_eq!(w.len(), 2, "{w:?}");
         assert!(w[0].contains("00_forc.csv") && w[0].contains("77.0 %") && w[0].contains("71 %"));
         assert!(w[1].contains("0.15 x M_s"));
         let dynamic = [sine(20.0, 0.42), sine(50.0, 0.12), sine(400.0, 0.01)];
-        let w = warnings(&[file(0.003, 0)], 7.87e5, 7.87e5, &dynamic, Some(200.0));
+        let w = warnings(
+            &[file(0.003, 0)],
+            Masses::Saturating {
+                sum_a_per_m: 7.87e5,
+            },
+            7.87e5,
+            &dynamic,
+            Some(200.0),
+        );
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].contains("sine_20.csv at 20 Hz, 42.0 %"), "{w:?}");
     }
@@ -326,8 +348,29 @@ mod quality {
     fn experiments_above_the_fitted_band_are_not_judged() {
         // The held-out band may disagree: that is the diagnosis' business.
         let dynamic = [sine(20.0, 0.01), sine(300.0, 0.9), sine(400.0, 0.9)];
-        assert!(warnings(&[], 7.87e5, 7.87e5, &dynamic, Some(200.0)).is_empty());
-        assert_eq!(warnings(&[], 7.87e5, 7.87e5, &dynamic, None).len(), 1);
+        assert!(warnings(
+            &[],
+            Masses::Saturating {
+                sum_a_per_m: 7.87e5
+            },
+            7.87e5,
+            &dynamic,
+            Some(200.0)
+        )
+        .is_empty());
+        assert_eq!(
+            warnings(
+                &[],
+                Masses::Saturating {
+                    sum_a_per_m: 7.87e5
+                },
+                7.87e5,
+                &dynamic,
+                None
+            )
+            .len(),
+            1
+        );
     }
 
     #[test]

@@ -9,7 +9,7 @@
 
 use maglab_dataset::StartState;
 use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter};
-use maglab_identify::fit::{FitOptions, Reversible, Unexcited};
+use maglab_identify::fit::{Bands, FitOptions, Reversible, Unexcited};
 use maglab_identify::lines::LineChoice;
 use maglab_identify::model::{fit_table, predict_table, DEFAULT_RANGE_MARGIN};
 use std::path::PathBuf;
@@ -38,6 +38,10 @@ const OPTIONS: FitOptions = FitOptions {
     unexcited: Unexcited::Regularized,
     row_stride: 1,
     total_mass_at_most: None,
+    bands: Bands {
+        low: false,
+        high: false,
+    },
 };
 
 #[test]
@@ -90,7 +94,7 @@ fn bh_loops_fit_two_amplitudes_predict_the_others() {
             &spec,
             None,
             DEFAULT_RANGE_MARGIN,
-            StartState::Periodic,
+            (StartState::Periodic, false),
             lines,
             true,
             &options,
@@ -139,7 +143,7 @@ fn piezo_fit_early_cycles_predict_later_ones() {
         &spec,
         None,
         DEFAULT_RANGE_MARGIN,
-        StartState::DemagnetizedAtFirstInput,
+        (StartState::DemagnetizedAtFirstInput, false),
         LineChoice::Auto,
         true,
         &OPTIONS,

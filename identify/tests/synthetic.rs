@@ -99,6 +99,7 @@ fn identified_masses_predict_held_out_inputs_within_one_percent() {
             unexcited: Unexcited::Regularized,
             row_stride: 1,
             total_mass_at_most: None,
+            bands: Default::default(),
         },
     )
     .unwrap();

@@ -29,7 +29,7 @@ const HIL_STARTS: [StartState; 3] = [
     StartState::PositiveSaturation,
     StartState::Demagnetized,
 ];
-use maglab_plant::{Effect, Plant};
+use maglab_plant::{Effect, Plant, Rod};
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use std::io::{Read, Write};
@@ -45,6 +45,11 @@ pub struct Args {
     /// --list-effects`).
     #[arg(long = "effect")]
     pub effects: Vec<String>,
+    /// The rod's own Preisach measure instead of the parameter file's: `FAMILY:FACTOR[:C:S]`
+    /// (gaussian, lognormal, bimodal, skewed; the plane FACTOR times wider than the coil reaches
+    /// at the current limit; coercivity C ± S kA/m; `maglab_plant::rods`).
+    #[arg(long, value_name = "FAMILY:FACTOR")]
+    pub rod: Option<String>,
     /// White sensor noise (standard deviation), m.
     #[arg(long, default_value_t = 0.05e-6)]
     pub noise_m: f64,
@@ -112,7 +117,14 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let rate_hz = begin.value as f64;
     let ticks = begin.aux32;
-    let mut plant = Plant::new(&loaded.file, &effects, rate_hz).map_err(|e| anyhow::anyhow!(e))?;
+    let mut plant = match &args.rod {
+        Some(text) => {
+            let rod = Rod::parse(text).map_err(|e| anyhow::anyhow!("--rod: {e}"))?;
+            Plant::with_rod(&loaded.file, &rod, &effects, rate_hz)
+        }
+        None => Plant::new(&loaded.file, &effects, rate_hz),
+    }
+    .map_err(|e| anyhow::anyhow!(e))?;
     plant.start(start, 0.0).map_err(|e| anyhow::anyhow!(e))?;
     let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
     if args.prior_history > 0 {

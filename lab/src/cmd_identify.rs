@@ -53,21 +53,23 @@ pub struct Args {
     /// are left out of the mass fit, and so are rows whose displacement lies below ≈ 11 times
     /// the record's own noise (after the lag correction) when that is higher: the square root
     /// M = M_s √(u/S) of a noisy u is biased low there (printed per record as the fit floor).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = defaults().masses.zero_band_fraction)]
     zero_band: f64,
     /// Smoothness weight λ_s. Small by default: a Terfenol-like density is sharply peaked near
     /// the coercive field, and a stronger prior of smooth densities biases the central masses
     /// (measured on the bench plant: λ_s = 1e-6 put R_eddy 9 % off through them, 1e-8 under 1 %).
-    #[arg(long, default_value_t = 1e-8)]
+    #[arg(long, default_value_t = defaults().masses.fit.smoothness)]
     smoothness: f64,
     /// Ridge weight λ_r toward the base masses.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = defaults().masses.fit.ridge)]
     ridge: f64,
-    /// Unexcited cells: keep-prior (base masses), zero, regularized.
-    #[arg(long, default_value = "keep-prior")]
+    /// Unexcited cells: keep-prior (base masses), zero, regularized. On a grid around the
+    /// reach of a rod the coil cannot saturate there are no base masses: keep-prior is
+    /// regularized there (docs/model.md).
+    #[arg(long, default_value_t = defaults().masses.fit.unexcited.name().to_string())]
     unexcited: String,
     /// Use every n-th sample in the regression (the memory still sees every sample).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = defaults().masses.fit.row_stride)]
     row_stride: usize,
     /// The reversible magnetization: `none` (the paper's M = Γ[H]), `piecewise` (M = Γ[H] +
     /// R(H), a monotone piecewise-linear anhysteretic part with a susceptibility per grid
@@ -78,7 +80,7 @@ pub struct Args {
     /// predicts the lowest-frequency sines no worse; said in the output and in
     /// `provenance.reversible_part`. `maglab diagnose` names a kept part as an effect the
     /// paper's model lacks.
-    #[arg(long, default_value = "auto")]
+    #[arg(long, default_value_t = defaults().reversible.name().to_string())]
     reversible: String,
     /// Directory for the plots.
     #[arg(long, default_value = "out")]
@@ -113,6 +115,11 @@ pub struct Args {
     /// Skip the final fit (write the phase-lag scheme's R_eddy, ξ and the base f0).
     #[arg(long)]
     no_waveform_fit: bool,
+}
+
+/// The library's defaults, which the options' defaults show.
+fn defaults() -> IdentifyOptions {
+    IdentifyOptions::default()
 }
 
 /// Runs `maglab identify`.
@@ -202,9 +209,11 @@ fn options(args: &Args) -> Result<IdentifyOptions> {
                 unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
                 row_stride: args.row_stride,
                 total_mass_at_most: None,
+                bands: Default::default(),
             },
             lag_correction: None,
             current_shift_samples: 0.0,
+            reach: None,
         },
         reversible,
         dynamics: DynamicOptions {
@@ -263,7 +272,7 @@ fn print_result(
     if let Some(kept) = &id.passes {
         print_passes(kept);
     }
-    print_masses(id, base, &args.unexcited);
+    print_masses(id, base);
     if id.dynamic.is_none() {
         println!(
             "NOT identified: R_eddy = {} Ω, ξ = {}, f0 = {} Hz are copied from {base_name}: the \
@@ -281,7 +290,7 @@ fn print_result(
 }
 
 /// The masses: each quasi-static record's fit, the sum, the reversible part, unexcited cells.
-fn print_masses(id: &Identified, base: &actuator_params::ActuatorParams, unexcited: &str) {
+fn print_masses(id: &Identified, base: &actuator_params::ActuatorParams) {
     let m = &id.masses;
     for f in &m.files {
         println!(
@@ -326,8 +335,9 @@ fn print_masses(id: &Identified, base: &actuator_params::ActuatorParams, unexcit
         }
     }
     println!(
-        "unexcited cells: {} (treatment: {unexcited})",
-        m.fit.unexcited.len()
+        "unexcited cells: {} (treatment: {}; cells of the one-way bands: 0, the offset carries them)",
+        m.fit.unexcited.len(),
+        m.fit.unexcited_treatment.name()
     );
     for (label, n) in &m.fit.outside {
         if *n > 0 {

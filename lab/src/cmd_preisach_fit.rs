@@ -57,9 +57,10 @@ pub struct FitArgs {
     /// Initial memory of each experiment: auto, negative-saturation, positive-saturation,
     /// demagnetized-at-first-input (AC-demagnetized around the first input), demagnetized
     /// (around zero input), periodic (the experiment is one period of a periodic steady state).
-    /// `auto`: periodic when every experiment is a closed loop (it ends where it started, in
-    /// input and output, within 2 % of its ranges), else demagnetized-at-first-input; the choice
-    /// is printed.
+    /// `auto`: each experiment on its own: periodic when it is a closed loop (its fit rows end
+    /// where they started, in input and output, within 2 % of their ranges), else
+    /// demagnetized-at-first-input; the choices are printed and `preisach-predict` judges
+    /// every experiment the same way.
     #[arg(long, default_value = "auto")]
     initial: String,
     /// Smoothness weight λ_s (see maglab_identify::fit), or auto: chosen from 1e-7, 1e-6, 1e-5
@@ -164,7 +165,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     std::fs::write(&args.output, json)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     let (predictions, score) = predict_table(&model, &table);
-    print_fit(&table, &spec, &model, &result, score, &options, initial);
+    print_fit(&table, &spec, &model, &result, score, &options, initial.0);
     println!("wrote {}", args.output.display());
     let map = WeightMap {
         title: format!("Preisach masses, {}", args.file.display()),
@@ -227,6 +228,9 @@ fn fit_options(args: &FitArgs) -> Result<(FitOptions, bool)> {
             Reversible::PiecewiseNoOffset => {
                 bail!("--reversible: piecewise-no-offset is for maglab identify; use piecewise")
             }
+            Reversible::Offset => {
+                bail!("--reversible: offset is for maglab identify; use linear (an offset and a slope) or none")
+            }
             r => r,
         }
     };
@@ -237,23 +241,25 @@ fn fit_options(args: &FitArgs) -> Result<(FitOptions, bool)> {
         unexcited: Unexcited::parse(&args.unexcited).map_err(|e| anyhow!(e))?,
         row_stride: args.row_stride,
         total_mass_at_most: None,
+        bands: Default::default(),
     };
     Ok((options, auto_smoothness))
 }
 
-/// `--initial`: given, or chosen from the table (`auto`, printed).
-fn initial_state(args: &FitArgs, table: &Table) -> Result<StartState> {
+/// `--initial`: given, or `auto` (each experiment judged on its own, printed): the state and
+/// whether closed loops start periodic.
+fn initial_state(args: &FitArgs, table: &Table) -> Result<(StartState, bool)> {
     Ok(if args.initial == "auto" {
-        let (chosen, why) = auto_initial(table);
-        println!("initial state auto: {} ({why})", chosen.name());
-        chosen
+        println!("initial state auto: {}", auto_initial(table));
+        (StartState::DemagnetizedAtFirstInput, true)
     } else {
-        StartState::parse_among(&args.initial, &PREISACH_STARTS).map_err(|e| {
+        let state = StartState::parse_among(&args.initial, &PREISACH_STARTS).map_err(|e| {
             anyhow!(
-                "--initial: {e}, or auto (periodic for closed loops, else \
-                 demagnetized-at-first-input)"
+                "--initial: {e}, or auto (each experiment on its own: periodic for a closed \
+                 loop, else demagnetized-at-first-input)"
             )
-        })?
+        })?;
+        (state, false)
     })
 }
 
@@ -417,43 +423,26 @@ fn loops_figure(
 }
 
 /// Runs `preisach-predict`.
-/// `--initial auto`: periodic when every experiment is a closed loop (its last sample within 2 %
-/// of its input and output ranges of its first), else demagnetized.
-fn auto_initial(table: &Table) -> (StartState, String) {
-    let closed = |input: &[f64], output: &[f64]| -> bool {
-        let span = |v: &[f64]| {
-            let (lo, hi) = v
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                    (a.min(x), b.max(x))
-                });
-            hi - lo
-        };
-        match (input.first(), input.last(), output.first(), output.last()) {
-            (Some(&u0), Some(&u1), Some(&y0), Some(&y1)) => {
-                let (su, sy) = (span(input), span(output));
-                su > 0.0 && (u1 - u0).abs() <= 0.02 * su && (y1 - y0).abs() <= 0.02 * sy.max(1e-300)
-            }
-            _ => false,
-        }
-    };
+/// `--initial auto`: each experiment judged on its own ([`maglab_identify::model::is_closed_loop`]
+/// on its fit rows): a closed loop starts `periodic`, the others demagnetized about their first
+/// input. Returns the description printed.
+fn auto_initial(table: &Table) -> String {
     let n = table.series.len();
-    let closed_count = table
+    let closed: Vec<&str> = table
         .series
         .iter()
-        .filter(|s| closed(&s.input, &s.output))
-        .count();
-    if n > 0 && closed_count == n {
-        (
-            StartState::Periodic,
-            format!("all {n} experiments are closed loops"),
-        )
-    } else {
-        (
-            StartState::DemagnetizedAtFirstInput,
-            format!("{closed_count} of {n} experiments are closed loops"),
-        )
-    }
+        .filter(|s| maglab_identify::model::is_closed_loop(s))
+        .map(|s| s.label.as_str())
+        .collect();
+    format!(
+        "periodic for the {} of {n} experiments that are closed loops{}, demagnetized about the first input for the others",
+        closed.len(),
+        if closed.is_empty() || closed.len() > 8 {
+            String::new()
+        } else {
+            format!(" ({})", closed.join(", "))
+        }
+    )
 }
 
 /// The group column a model was fitted with (recorded in its provenance), if any.
@@ -489,14 +478,21 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
     let table = read_columns(&args.file, &spec)?;
     let (predictions, score) = predict_table(&model, &table);
     println!(
-        "experiments: {} (initial state {} each)",
+        "experiments: {} (initial state {})",
         match (&spec.group, args.group_col.is_some(), args.no_group) {
             (Some(g), true, _) => format!("runs of equal `{g}` (--group-col)"),
             (Some(g), false, _) => format!("runs of equal `{g}` (the model's group column)"),
             (None, _, true) => "the whole file (--no-group)".to_string(),
             (None, _, false) => "the whole file (the model was fitted without groups)".to_string(),
         },
-        model.initial_state.name()
+        if model.closed_loops_periodic {
+            format!(
+                "periodic for a closed loop, else {}, each judged on its own",
+                model.initial_state.name()
+            )
+        } else {
+            format!("{} each", model.initial_state.name())
+        }
     );
     let outside: usize = table
         .series

@@ -58,6 +58,11 @@ pub struct Args {
     /// Do not document the start state in dataset.json (the diagnosis then estimates it).
     #[arg(long)]
     pub undocumented: bool,
+    /// The rod's own Preisach measure instead of the parameter file's: `FAMILY:FACTOR[:C:S]`
+    /// (gaussian, lognormal, bimodal, skewed; the plane FACTOR times wider than the coil reaches
+    /// at the current limit; coercivity C ± S kA/m; `maglab_plant::rods`).
+    #[arg(long, value_name = "FAMILY:FACTOR")]
+    pub rod: Option<String>,
     /// Sampling rate, Hz.
     #[arg(long, default_value_t = 10_000.0)]
     pub rate_hz: f64,
@@ -169,8 +174,16 @@ pub fn run(args: &Args) -> Result<()> {
         .as_deref()
         .ok_or_else(|| anyhow!("--out is required (the dataset folder)"))?;
     let started = std::time::Instant::now();
-    let recordings =
-        bench::record_all(&params, &effects, &experiments, &settings).map_err(|e| anyhow!(e))?;
+    let recordings = match &args.rod {
+        Some(text) => {
+            let rod = maglab_plant::Rod::parse(text).map_err(|e| anyhow!("--rod: {e}"))?;
+            let plant = maglab_plant::Plant::with_rod(&params, &rod, &effects, settings.rate_hz)
+                .map_err(|e| anyhow!(e))?;
+            bench::record_all_on(plant, &experiments, &settings)
+        }
+        None => bench::record_all(&params, &effects, &experiments, &settings),
+    }
+    .map_err(|e| anyhow!(e))?;
     let mut recordings = recordings;
     let paths = bench::write_dataset(out, &recordings).map_err(|e| anyhow!(e))?;
     if args.undocumented {

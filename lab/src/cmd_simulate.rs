@@ -240,7 +240,7 @@ fn simulate(
     let dynamic = DynamicModel::new(measure, actuator, (1.0 / rate_hz) as f32);
     let statics = StaticModel::new(measure, actuator);
     let first = input.currents_a.first().copied().unwrap_or(0.0) as f32;
-    let mut state: ModelState = dynamic.equilibrium(measure.demagnetized(), first);
+    let mut state: ModelState = dynamic.equilibrium(measure.demagnetized_at(0.0), first);
     let mut samples = Vec::with_capacity(input.currents_a.len());
     for (k, &i) in input.currents_a.iter().enumerate() {
         // Row k is the state at t_k, before the current of row k acts (the measurement files'

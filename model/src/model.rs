@@ -80,6 +80,11 @@ pub struct Nominal {
     /// The longest excitation period among the dynamic experiments, s (0.25 s until data are
     /// seen): a drift must be slow against it to be told from a static nonlinearity.
     pub slowest_period_s: f64,
+    /// The fields `(c0 I_lo, c0 I_hi)` the firmware's start-up conditioning sweeps with this
+    /// file baked, when it sweeps the reach of a rod the coil cannot saturate
+    /// (`magctl::inverse::Conditioning`); `None` when it saturates the rod. A documented start
+    /// `conditioned` is that sweep.
+    pub conditioning_sweep_a_per_m: Option<(f32, f32)>,
 }
 
 impl Nominal {
@@ -102,6 +107,7 @@ impl Nominal {
                 .abs()
                 .max(p.preisach.h_min_a_per_m.abs()),
             slowest_period_s: 0.25,
+            conditioning_sweep_a_per_m: conditioning_sweep_a_per_m(p),
         }
     }
 }
@@ -230,19 +236,47 @@ pub fn reversible(rev: Option<(f64, f64, f64)>, h: f64) -> (f64, f64) {
     }
 }
 
+/// The fields the firmware's conditioning sweeps with `p` baked (the core's own rule, so the
+/// model and the firmware agree), `None` when it saturates the rod or the file cannot be baked.
+fn conditioning_sweep_a_per_m(p: &actuator_params::ActuatorParams) -> Option<(f32, f32)> {
+    use magctl::inverse::{Conditioning, OutputLimiter, Sweep};
+    let core = magctl::params::ActuatorParameters::from_file(p, "parameter file").ok()?;
+    let limiter = OutputLimiter::new(&core.control).ok()?;
+    let measure = core.preisach.measure();
+    let c0 = core.actuator.coil_factor_per_m;
+    let conditioning = Conditioning::new(
+        &limiter,
+        c0,
+        &measure,
+        core.preisach.reach_a_per_m,
+        core.control.sample_rate_hz,
+    )
+    .ok()?;
+    match conditioning.sweep() {
+        Sweep::Saturate { .. } => None,
+        Sweep::Reach { low_a, high_a } => Some((low_a * c0, high_a * c0)),
+    }
+}
+
 /// The memory a start puts the model in (before the move to the first command); a chained
 /// start without a previous memory starts demagnetized.
 fn start_memory(
+    nominal: &Nominal,
     measure: &PreisachMeasure,
     start: &ModelStart,
     previous: Option<&Memory>,
 ) -> Memory {
     match (start, previous) {
+        (ModelStart::State(StartState::Conditioned), _) => match nominal.conditioning_sweep_a_per_m
+        {
+            Some((low, high)) => measure.conditioned(low, high),
+            None => measure.negative_saturation(),
+        },
         (ModelStart::State(StartState::NegativeSaturation), _) => measure.negative_saturation(),
         (ModelStart::State(StartState::PositiveSaturation), _) => measure.positive_saturation(),
         (ModelStart::State(StartState::Previous), Some(m)) => m.clone(),
         (ModelStart::After(m), _) => (**m).clone(),
-        _ => measure.demagnetized(),
+        _ => measure.demagnetized_at(0.0),
     }
 }
 
@@ -339,7 +373,7 @@ fn electro_steps<const SECOND_PATH: bool>(
     let amp = e
         .amplifier
         .map(|(f, zeta)| second_order(2.0 * PI * f, zeta, delta));
-    let mut memory = start_memory(measure, start, previous);
+    let mut memory = start_memory(nominal, measure, start, previous);
     let first = currents_a[0];
     let (i_start, h0) = match start {
         ModelStart::State(StartState::SwitchOnDemagnetized) => (0.0, 0.0),

@@ -27,6 +27,8 @@ macro_rules! core_fields {
             preisach.h_max_a_per_m => preisach.h_max_a_per_m;
             preisach.grid_lines_a_per_m => preisach.lines_a_per_m;
             preisach.reversible_susceptibility => preisach.reversible_susceptibility;
+            preisach.reach_a_per_m => preisach.reach_a_per_m;
+            preisach.offset_a_per_m => preisach.offset_a_per_m;
             preisach.weights_a_per_m => preisach.weights_a_per_m;
             control.sample_rate_hz => control.sample_rate_hz;
             control.current_limit_a => control.current_limit_a;

@@ -56,6 +56,8 @@ pub fn paper_defaults() -> ActuatorParams {
             h_max_a_per_m: h_max,
             grid_lines_a_per_m: None,
             reversible_susceptibility: None,
+            reach_a_per_m: None,
+            offset_a_per_m: 0.0,
             weights_a_per_m: weights,
         },
         control: Control {
@@ -74,17 +76,17 @@ pub fn paper_defaults() -> ActuatorParams {
             coil_resistance_ohm: 5.8,
             coil_inductance_h: 8.0e-3,
         },
-        // An example sensor (measure your own): a 0-80 µm displacement sensor on a 12-bit ADC
-        // (19.5 nm per count), covering the rod's full stroke λ_s·L = 67.4 µm (identification
-        // and the start-up conditioning drive the rod to saturation); its two rails (0 and 4095
+        // An example sensor (measure your own): an 80 µm displacement sensor on a 12-bit ADC
+        // (19.5 nm per count) reading −2 … 78 µm, covering the rod at rest (0 m, unmagnetized at
+        // 0 A, with its noise) and its full stroke λ_s·L = 67.4 µm; its two rails (0 and 4095
         // counts, a saturated or disconnected sensor) lie outside the valid range; 20 µs of
         // conversion and filter delay.
         sensor: Sensor {
             adc_bits: 12,
             gain_m_per_count: 80.0e-6 / 4095.0,
-            offset_m: 0.0,
-            valid_min_m: 0.5e-6,
-            valid_max_m: 79.5e-6,
+            offset_m: -2.0e-6,
+            valid_min_m: -1.5e-6,
+            valid_max_m: 77.5e-6,
             sample_delay_s: 20.0e-6,
         },
         trajectory: Trajectory {

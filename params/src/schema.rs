@@ -89,6 +89,18 @@ pub struct Preisach {
     /// flat beyond the grid. Absent: no reversible part (the paper's `M = Γ[H]`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reversible_susceptibility: Option<Vec<f64>>,
+    /// `[H_lo, H_hi]`, A/m: the field range the coil drives this rod through (what the
+    /// identification data reached), inside the grid. Present when the rod's Preisach plane is
+    /// wider than that: the grid's intervals outside the reach then hold the one-way bands
+    /// (docs/model.md, "Rods the coil cannot saturate") and the start-up conditioning sweeps
+    /// the reach instead of saturating. Absent: the coil saturates the rod on the grid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reach_a_per_m: Option<Vec<f64>>,
+    /// `M_off`, A/m: the constant magnetization of the part of the plane the coil never
+    /// switches, added to the output (`M = Γ[H] + R(H) + M_off`). 0 (absent) for a rod the coil
+    /// saturates.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub offset_a_per_m: f64,
     /// Cell masses in A/m, `L (L + 1) / 2` of them, in alpha-major order: the cell whose switch-down
     /// threshold β lies in interval `i` and switch-up threshold α in interval `j` (`i <= j`) has
     /// index `j (j + 1) / 2 + i`. The output is `M = Σ w·(±1)`, so `Σ w` is the saturation output.
@@ -374,6 +386,7 @@ impl ActuatorParams {
         self.check_grid(&err)?;
         self.check_reversible(&err)?;
         self.check_masses(&err)?;
+        self.check_reach(&err)?;
         Ok(())
     }
 
@@ -558,6 +571,19 @@ impl ActuatorParams {
                 format!(
                     "the valid range [{}, {}] m must lie inside what the ADC can read, [{reach_lo:.4e}, {reach_hi:.4e}] m (offset + gain x 0 ..= {full_count})",
                     sn.valid_min_m, sn.valid_max_m
+                ),
+            ));
+        }
+        // The rod at rest, unmagnetized at 0 A, sits at 0 m: a reading there (with its noise
+        // and the count it rounds to) must never be a fault, or the firmware stops at its first
+        // sample when it starts without conditioning.
+        if sn.valid_min_m > -sn.gain_m_per_count.abs() || sn.valid_max_m <= 0.0 {
+            return Err(err(
+                "sensor.valid_min_m",
+                format!(
+                    "the rest position 0 m (the rod unmagnetized at 0 A) must lie inside the valid \
+                     range [{}, {}] m with at least one ADC count ({:.3e} m) below it to spare",
+                    sn.valid_min_m, sn.valid_max_m, sn.gain_m_per_count.abs()
                 ),
             ));
         }
@@ -832,10 +858,61 @@ impl ActuatorParams {
         Ok(())
     }
 
+    /// Checks the reach (inside the grid, increasing) and the offset (finite, at most `M_s`).
+    fn check_reach(&self, err: &dyn Fn(&str, String) -> ParamsError) -> Result<(), ParamsError> {
+        let p = &self.preisach;
+        let field = "preisach.offset_a_per_m";
+        check_finite(field, p.offset_a_per_m).map_err(|r| err(field, r))?;
+        let ms = self.actuator.saturation_magnetization_a_per_m;
+        if p.offset_a_per_m.abs() > ms {
+            return Err(err(
+                field,
+                format!(
+                    "|{}| exceeds M_s = {ms} (a magnetization of part of the rod cannot)",
+                    p.offset_a_per_m
+                ),
+            ));
+        }
+        let Some(reach) = &p.reach_a_per_m else {
+            return Ok(());
+        };
+        let field = "preisach.reach_a_per_m";
+        let [lo, hi] = reach[..] else {
+            return Err(err(
+                field,
+                format!(
+                    "must be [H_lo, H_hi], two fields; the file has {}",
+                    reach.len()
+                ),
+            ));
+        };
+        for (k, h) in [lo, hi].into_iter().enumerate() {
+            let f = format!("{field}[{k}]");
+            check_finite(&f, h).map_err(|r| err(&f, r))?;
+        }
+        if lo >= hi {
+            return Err(err(field, format!("H_lo must be < H_hi, got [{lo}, {hi}]")));
+        }
+        if lo < p.h_min_a_per_m || hi > p.h_max_a_per_m {
+            return Err(err(
+                field,
+                format!(
+                    "[{lo}, {hi}] must lie inside the grid [{}, {}]",
+                    p.h_min_a_per_m, p.h_max_a_per_m
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// The saturation output of the Preisach operator, `Σ w` (A/m).
     pub fn preisach_total_a_per_m(&self) -> f64 {
         self.preisach.weights_a_per_m.iter().sum()
     }
+}
+
+fn is_zero(value: &f64) -> bool {
+    *value == 0.0
 }
 
 /// Finite, and finite once baked: the core stores every parameter as f32, so a value beyond

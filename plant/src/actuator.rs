@@ -216,11 +216,38 @@ impl Plant {
         params
             .validate("plant parameters")
             .map_err(|e| e.to_string())?;
+        Self::with_measure(
+            params,
+            PreisachGrid::from_params(params)?,
+            effects,
+            sample_rate_hz,
+        )
+    }
+
+    /// A plant with the constants of `params` but the rod's own Preisach measure `grid` (a
+    /// [`crate::rods::Rod`] on the plant's grid; the file's grid and masses are not used).
+    pub fn with_rod(
+        params: &ActuatorParams,
+        rod: &crate::rods::Rod,
+        effects: &[Effect],
+        sample_rate_hz: f64,
+    ) -> Result<Self, String> {
+        params
+            .validate("plant parameters")
+            .map_err(|e| e.to_string())?;
+        Self::with_measure(params, rod.grid(params)?, effects, sample_rate_hz)
+    }
+
+    fn with_measure(
+        params: &ActuatorParams,
+        grid: PreisachGrid,
+        effects: &[Effect],
+        sample_rate_hz: f64,
+    ) -> Result<Self, String> {
         crate::effects::check_unique(effects)?;
         if !(sample_rate_hz.is_finite() && sample_rate_hz > 0.0) {
             return Err(format!("sample rate must be > 0 Hz, got {sample_rate_hz}"));
         }
-        let grid = PreisachGrid::from_params(params)?;
         let constants = PlantConstants::from_params(params);
         let fx = resolve(&constants, effects);
         let n_paths = fx.paths.len();
@@ -344,6 +371,14 @@ impl Plant {
                 return Err(
                     "the bench plant cannot start `periodic`: it is a property of a \
                      record, not a state (play the record once, then record it again with \
+                     `previous`)"
+                        .into(),
+                )
+            }
+            StartState::Conditioned => {
+                return Err(
+                    "the bench plant cannot start `conditioned`: the reach a conditioning sweeps \
+                     is the controller's, not the rod's (command the sweep, then record with \
                      `previous`)"
                         .into(),
                 )

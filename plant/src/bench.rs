@@ -130,6 +130,90 @@ pub fn sine(
         .collect()
 }
 
+/// A quasi-static sweep with nested reversals between `low_a` and `high_a`: up to `high_a`,
+/// down to `low_a`, then `levels` narrowing pairs (`high − k d`, `low + k d`,
+/// `d = (high − low) / (2 levels)`), at one constant speed so that the whole path takes
+/// `duration_s` (the reversal curves inside the coil's reach a bench can run on any rod).
+pub fn reversal_sweep(
+    low_a: f64,
+    high_a: f64,
+    levels: usize,
+    duration_s: f64,
+    rate_hz: f64,
+) -> Vec<f64> {
+    let d = (high_a - low_a) / (2.0 * levels.max(1) as f64);
+    let mut points = vec![low_a, high_a, low_a];
+    for k in 1..levels {
+        points.push(high_a - k as f64 * d);
+        points.push(low_a + k as f64 * d);
+    }
+    let length: f64 = points.windows(2).map(|w| (w[1] - w[0]).abs()).sum();
+    let n = (duration_s * rate_hz).round().max(2.0) as usize;
+    let per_sample = length / (n - 1) as f64;
+    let mut out = Vec::with_capacity(n);
+    let (mut segment, mut at) = (1, low_a);
+    out.push(at);
+    while out.len() < n && segment < points.len() {
+        let mut step = per_sample;
+        while step > 0.0 && segment < points.len() {
+            let goal = points[segment];
+            let left = (goal - at).abs();
+            if left <= step {
+                at = goal;
+                step -= left;
+                segment += 1;
+            } else {
+                at += step * (goal - at).signum();
+                step = 0.0;
+            }
+        }
+        out.push(at);
+    }
+    out.resize(n, at);
+    out
+}
+
+/// The current of a Van der Pol oscillator `x'' − μ (1 − x²) x' + (2π f)² x = 0` on its limit
+/// cycle (amplitude ≈ 2), scaled to `bias_a ± amplitude_a` (RK4 at 16 steps per sample).
+pub fn van_der_pol_current(
+    bias_a: f64,
+    amplitude_a: f64,
+    freq_hz: f64,
+    mu: f64,
+    duration_s: f64,
+    rate_hz: f64,
+) -> Vec<f64> {
+    let w = 2.0 * PI * freq_hz;
+    // In time τ = ω t: x'' − μ (1 − x²) x' + x = 0.
+    let f = |x: f64, v: f64| (v, mu * (1.0 - x * x) * v - x);
+    let dt = w / rate_hz / 16.0;
+    let step = |(x, v): (f64, f64)| {
+        let (k1x, k1v) = f(x, v);
+        let (k2x, k2v) = f(x + 0.5 * dt * k1x, v + 0.5 * dt * k1v);
+        let (k3x, k3v) = f(x + 0.5 * dt * k2x, v + 0.5 * dt * k2v);
+        let (k4x, k4v) = f(x + dt * k3x, v + dt * k3v);
+        (
+            x + dt / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x),
+            v + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
+        )
+    };
+    // Onto the limit cycle first: 20 periods from x = 2.
+    let mut s = (2.0, 0.0);
+    for _ in 0..(20.0 * 2.0 * PI / dt) as usize {
+        s = step(s);
+    }
+    let n = (duration_s * rate_hz).round() as usize;
+    (0..n)
+        .map(|_| {
+            let i = bias_a + amplitude_a * 0.5 * s.0;
+            for _ in 0..16 {
+                s = step(s);
+            }
+            i
+        })
+        .collect()
+}
+
 /// The quasi-static reversal sweep of `maglab excite` (first-order reversal curves reaching every
 /// Preisach cell, a full-range triangle at `sweep_hz`), from negative saturation: the
 /// identification record a dataset for `maglab identify` starts with.
@@ -239,7 +323,21 @@ pub fn record_all(
     settings: &BenchSettings,
 ) -> Result<Vec<Recording>, String> {
     settings.check()?;
-    let plant = Plant::new(params, effects, settings.rate_hz)?;
+    record_all_on(
+        Plant::new(params, effects, settings.rate_hz)?,
+        experiments,
+        settings,
+    )
+}
+
+/// Records every experiment on `plant` (as [`record_all`] does: a chain in order, else each on
+/// its own copy in parallel).
+pub fn record_all_on(
+    plant: Plant,
+    experiments: &[Experiment],
+    settings: &BenchSettings,
+) -> Result<Vec<Recording>, String> {
+    settings.check()?;
     let chained = experiments.iter().any(|e| e.start == StartState::Previous);
     if chained {
         let mut plant = plant;

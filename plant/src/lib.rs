@@ -12,8 +12,10 @@ pub mod actuator;
 pub mod bench;
 pub mod effects;
 pub mod preisach;
+pub mod rods;
 pub mod suite;
 
 pub use actuator::{Plant, PlantConstants, PLANT_STARTS};
 pub use bench::{BenchSettings, Experiment, Recording};
 pub use effects::{Effect, EffectSpec, EFFECTS};
+pub use rods::{Family, Rod};

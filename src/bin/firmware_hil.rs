@@ -35,9 +35,11 @@
 //! unflagged command after a fault, an SPI timeout) exits 3.
 //!
 //! **Start-up conditioning** (`magctl::inverse::Conditioning`): the first ticks ramp the coil to
-//! the negative current limit, hold, ramp up to the controller's first current and hold, so the
-//! rod's memory is the one the controller assumes whatever its history; those commands carry the
-//! `CONDITIONING` flag (32). `condition=off` skips it (to measure what it is worth).
+//! the negative current limit (a rod the coil saturates) or through the rod's reach, top then
+//! bottom (a rod it cannot), hold, ramp to the controller's first current and hold, so the rod's
+//! memory is the one the controller assumes whatever its history; those commands carry the
+//! `CONDITIONING` flag (32). `condition=off` skips it (to measure what it is worth). Every exit
+//! status is listed in docs/hil.md ("Exit status").
 //!
 //! **Measurement mode** (`mode=measure`): instead of tracking, the firmware plays an
 //! identification programme streamed by the bench host — a programme frame (`R`, the current
@@ -403,20 +405,11 @@ mod firmware {
         }
         let mut uart = unsafe { CmsdkUart::new(UART0_BASE, 16) };
         let state: LoopState<CAPACITY> = control.init(kind);
+        // The sequence the loop's first memory assumes: saturation, or the sweep of the reach
+        // of a rod the coil cannot saturate (never refused).
         let conditioning = if condition {
-            let limiter = *control.limiter();
-            match Conditioning::new(
-                &limiter,
-                BAKED_PARAMETERS.actuator.coil_factor_per_m,
-                BAKED_MEASURE.h_min_a_per_m(),
-                rate_hz,
-            ) {
-                Ok(c) => Some((c, c.start(0.0, state.core.last_current_a))),
-                Err(_) => {
-                    defmt::error!("the coil cannot saturate the rod at the current limit: no conditioning possible");
-                    semihosting::exit(5)
-                }
-            }
+            let c = *control.conditioning();
+            Some((c, c.start(0.0, state.core.last_current_a)))
         } else {
             None
         };
@@ -428,8 +421,8 @@ mod firmware {
             let Ok(programme) = IdentificationProgramme::new(
                 control.limiter(),
                 BAKED_PARAMETERS.actuator.coil_factor_per_m,
-                BAKED_MEASURE.h_min_a_per_m(),
-                BAKED_MEASURE.h_max_a_per_m(),
+                &BAKED_MEASURE,
+                BAKED_PARAMETERS.preisach.reach_a_per_m,
                 rate_hz,
             ) else {
                 defmt::error!("the identification programme cannot run with the baked parameters");

@@ -264,8 +264,8 @@ mod firmware {
             let Ok(programme) = magctl::programme::IdentificationProgramme::new(
                 control.limiter(),
                 p.actuator.coil_factor_per_m,
-                BAKED_MEASURE.h_min_a_per_m(),
-                BAKED_MEASURE.h_max_a_per_m(),
+                &BAKED_MEASURE,
+                p.preisach.reach_a_per_m,
                 p.control.sample_rate_hz,
             ) else {
                 halt("the identification programme cannot run with the baked parameters")

@@ -469,7 +469,7 @@ mod firmware {
             let t0 = SYST::get_current();
             let desired = control.trajectory().step(&mut state.core.trajectory);
             let t1 = SYST::get_current();
-            let mut inverter = magctl::inverse::FastInverter {
+            let mut inverter = magctl::inverse::FastInverter::<CAPACITY> {
                 measure: &BAKED_MEASURE,
                 state: &mut state.preisach,
             };

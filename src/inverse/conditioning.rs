@@ -1,55 +1,87 @@
-//! Start-up magnetic conditioning: before tracking starts, the coil current is ramped to the
-//! negative current limit, held, ramped up to the controller's first current and held again, so
-//! that the rod's Preisach memory is the one the controller assumes
-//! ([`ControlLoop::initial_preisach`](super::ControlLoop::initial_preisach): negative saturation,
-//! then a monotone rise to the first field), whatever history the rod had before power-up.
+//! Start-up magnetic conditioning: before tracking starts, the coil current is ramped through a
+//! fixed sequence that leaves the rod's Preisach memory in the state the controller assumes
+//! ([`Conditioning::memory`]), whatever history the rod had before power-up.
 //!
-//! Why it works: the field at `−I_max` is `−c0·I_max`, below the Preisach grid's `h_min` when
-//! [`Conditioning::new`] accepts the parameters, so every relay switches down and the memory is
-//! wiped (paper Section 4, the wiping-out property); the monotone ramp up then leaves exactly one
-//! increasing segment, the staircase the controller starts from. The ramps are slow
-//! ([`RAMP_FULL_SCALE_S`] for 0 → I_max, never faster than the slew limit) so the eddy-current
-//! lag of (4) leaves the field within a small fraction of `c0·I`, and the holds
-//! ([`HOLD_S`]) let the field and the rod settle.
+//! Two sequences, chosen from the parameters ([`Sweep`]):
+//!
+//! * [`Sweep::Saturate`] — the coil saturates the rod: the field at `−I_max`, `−c0·I_max`, lies at
+//!   or below the grid's `h_min`. Ramp to `−I_max`, hold, ramp to the controller's first current,
+//!   hold. Every relay switches down at `−I_max` (wiping-out property, paper Section 2), the ramp
+//!   up leaves one increasing segment: negative saturation, then a monotone rise.
+//! * [`Sweep::Reach`] — the rod's plane is wider than the coil reaches (the file's
+//!   `preisach.reach_a_per_m`, or the grid cut to `±c0·I_max`): ramp to the top of the reach
+//!   `I_hi`, hold, down to its bottom `I_lo`, hold, to the first current, hold. At `H_hi` every
+//!   relay with `α <= H_hi` is up; at `H_lo` every relay with `β >= H_lo` is down. So afterwards
+//!   the reachable triangle is down, the one-way band `β < H_lo` (it can only switch up) is up, the
+//!   band `α > H_hi` (only down) is down — the same state after any history, except the relays
+//!   with `α > H_hi` and `β < H_lo`, which no current switches and whose state is part of the
+//!   identified offset `M_off` (docs/model.md, "Rods the coil cannot saturate"). The memory the
+//!   controller starts from is [`PreisachMeasure::conditioned`] over that reach.
+//!
+//! Neither refuses to run: a rod the coil cannot saturate gets the reach sweep.
+//!
+//! The ramps are slow ([`RAMP_FULL_SCALE_S`] for 0 → I_max, never faster than the slew limit)
+//! so the eddy-current lag of (4) leaves the field within a small fraction of `c0·I`, and the
+//! holds ([`HOLD_S`]) let the field and the rod settle.
 //!
 //! Cost per tick: a compare and an add (~15 instructions). Duration at the default parameters
-//! (2 A, 10 kHz) from 0 A to a first current of 0.3 A: 20 ms down, 5 ms hold, 23 ms up, 5 ms
-//! hold — 535 ticks.
+//! (2 A, 10 kHz, saturating) from 0 A to a first current of 0.3 A: 20 ms down, 5 ms hold, 23 ms
+//! up, 5 ms hold — 535 ticks; the reach sweep adds one ramp and one hold.
 
 use super::OutputLimiter;
+use crate::preisach::{PreisachMeasure, PreisachState};
 
 /// Ramp time for a change of the full current limit, s.
 pub const RAMP_FULL_SCALE_S: f32 = 0.02;
-/// Hold time at negative saturation and at the first current, s.
+/// Hold time at each extreme and at the first current, s.
 pub const HOLD_S: f32 = 0.005;
+
+/// Which sequence the parameters call for (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sweep {
+    /// The coil saturates the rod: down to `−I_max`, then to the first current.
+    Saturate {
+        /// `−I_max`, A.
+        low_a: f32,
+    },
+    /// The coil sweeps its reach: up to `I_hi`, down to `I_lo`, then to the first current.
+    Reach {
+        /// `I_lo`, A.
+        low_a: f32,
+        /// `I_hi`, A.
+        high_a: f32,
+    },
+}
 
 /// Coefficients of the conditioning sequence.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Conditioning {
-    low_a: f32,
+    sweep: Sweep,
+    coil_factor_per_m: f32,
     step_a: f32,
     hold_ticks: u32,
 }
 
-/// Rejected conditioning settings.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Rejected conditioning settings (a non-finite or non-positive coil factor or rate, or a reach
+/// that is not an increasing pair of finite fields).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ConditioningError {
-    /// The field at the current limit, `c0·I_max` (A/m), does not reach the grid's `|h_min|`:
-    /// the rod cannot be saturated, the memory cannot be wiped.
-    CannotSaturate {
-        /// `c0·I_max`, A/m.
-        field_at_limit_a_per_m: f32,
-        /// `|h_min|` of the grid, A/m.
-        needed_a_per_m: f32,
-    },
+    /// The coil factor `c0` is not a finite number > 0.
+    CoilFactor,
+    /// The control rate is not a finite number > 0.
+    SampleRate,
+    /// The reach is not `H_lo < H_hi`, both finite.
+    Reach,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Phase {
     HoldStart,
+    UpToHigh,
+    HoldHigh,
     Down,
     HoldLow,
-    Up,
+    ToTarget,
     HoldTarget,
     Done,
 }
@@ -85,33 +117,73 @@ impl ConditioningState {
 }
 
 impl Conditioning {
-    /// The sequence for a coil with `coil_factor_per_m` (`c0`), a grid starting at
-    /// `h_min_a_per_m`, the output `limiter` and the control rate `sample_rate_hz`.
+    /// The sequence for a coil with `coil_factor_per_m` (`c0`) on the grid `[h_min, h_max]` of
+    /// `measure`, with the rod's `reach` (`[H_lo, H_hi]`, A/m; `None`: the grid), the output
+    /// `limiter` and the control rate `sample_rate_hz`.
+    ///
+    /// [`Sweep::Saturate`] when no reach is given and `−c0·I_max <= h_min`; otherwise
+    /// [`Sweep::Reach`] over the reach cut to `±c0·I_max`.
     pub fn new(
         limiter: &OutputLimiter,
         coil_factor_per_m: f32,
-        h_min_a_per_m: f32,
+        measure: &PreisachMeasure,
+        reach_a_per_m: Option<[f32; 2]>,
         sample_rate_hz: f32,
     ) -> Result<Self, ConditioningError> {
-        let field = coil_factor_per_m * limiter.limit_a();
-        let needed = -h_min_a_per_m;
-        if field.is_nan() || field < needed {
-            return Err(ConditioningError::CannotSaturate {
-                field_at_limit_a_per_m: field,
-                needed_a_per_m: needed,
-            });
+        if !(coil_factor_per_m.is_finite() && coil_factor_per_m > 0.0) {
+            return Err(ConditioningError::CoilFactor);
         }
-        let per_tick = limiter.limit_a() / (RAMP_FULL_SCALE_S * sample_rate_hz);
+        if !(sample_rate_hz.is_finite() && sample_rate_hz > 0.0) {
+            return Err(ConditioningError::SampleRate);
+        }
+        let limit_a = limiter.limit_a();
+        let field_at_limit = coil_factor_per_m * limit_a;
+        let sweep = match reach_a_per_m {
+            None if -field_at_limit <= measure.h_min_a_per_m() => {
+                Sweep::Saturate { low_a: -limit_a }
+            }
+            reach => {
+                let [lo, hi] = reach.unwrap_or([measure.h_min_a_per_m(), measure.h_max_a_per_m()]);
+                if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                    return Err(ConditioningError::Reach);
+                }
+                let clamp = |i: f32| i.max(-limit_a).min(limit_a);
+                Sweep::Reach {
+                    low_a: clamp(lo / coil_factor_per_m),
+                    high_a: clamp(hi / coil_factor_per_m),
+                }
+            }
+        };
+        let per_tick = limit_a / (RAMP_FULL_SCALE_S * sample_rate_hz);
         let step_a = if per_tick < limiter.max_step_a() {
             per_tick
         } else {
             limiter.max_step_a()
         };
         Ok(Conditioning {
-            low_a: -limiter.limit_a(),
+            sweep,
+            coil_factor_per_m,
             step_a,
             hold_ticks: (HOLD_S * sample_rate_hz) as u32 + 1,
         })
+    }
+
+    /// The sequence the parameters called for.
+    pub fn sweep(&self) -> Sweep {
+        self.sweep
+    }
+
+    /// The Preisach memory the sequence leaves before its last ramp (to the controller's first
+    /// current): negative saturation, or [`PreisachMeasure::conditioned`] over the fields
+    /// `c0·I_lo`, `c0·I_hi` of the reach sweep.
+    pub fn memory<const N: usize>(&self, measure: &PreisachMeasure) -> PreisachState<N> {
+        match self.sweep {
+            Sweep::Saturate { .. } => measure.negative_saturation(),
+            Sweep::Reach { low_a, high_a } => measure.conditioned(
+                low_a * self.coil_factor_per_m,
+                high_a * self.coil_factor_per_m,
+            ),
+        }
     }
 
     /// A sequence from the current now on the coil, `from_a`, to the controller's first current
@@ -139,21 +211,33 @@ impl Conditioning {
     /// The current of the next tick, A; after the sequence ends it keeps returning the target.
     #[inline]
     pub fn step(&self, s: &mut ConditioningState) -> f32 {
+        let (low_a, high_a) = match self.sweep {
+            Sweep::Saturate { low_a } => (low_a, None),
+            Sweep::Reach { low_a, high_a } => (low_a, Some(high_a)),
+        };
         match s.phase {
-            Phase::HoldStart => s.count_down_to(Phase::Down),
+            Phase::HoldStart => s.count_down_to(if high_a.is_some() {
+                Phase::UpToHigh
+            } else {
+                Phase::Down
+            }),
+            Phase::UpToHigh => {
+                let high = high_a.unwrap_or(s.current_a);
+                if self.ramp(&mut s.current_a, high) {
+                    s.phase = Phase::HoldHigh;
+                    s.ticks_left = self.hold_ticks;
+                }
+            }
+            Phase::HoldHigh => s.count_down_to(Phase::Down),
             Phase::Down => {
-                s.current_a -= self.step_a;
-                if s.current_a <= self.low_a {
-                    s.current_a = self.low_a;
+                if self.ramp(&mut s.current_a, low_a) {
                     s.phase = Phase::HoldLow;
                     s.ticks_left = self.hold_ticks;
                 }
             }
-            Phase::HoldLow => s.count_down_to(Phase::Up),
-            Phase::Up => {
-                s.current_a += self.step_a;
-                if s.current_a >= s.target_a {
-                    s.current_a = s.target_a;
+            Phase::HoldLow => s.count_down_to(Phase::ToTarget),
+            Phase::ToTarget => {
+                if self.ramp(&mut s.current_a, s.target_a) {
                     s.phase = Phase::HoldTarget;
                     s.ticks_left = self.hold_ticks;
                 }
@@ -162,6 +246,29 @@ impl Conditioning {
             Phase::Done => {}
         }
         s.current_a
+    }
+
+    /// One ramp step of `current_a` toward `goal_a`; `true` once it is there. A NaN goal ends
+    /// the ramp where it stands.
+    #[inline(always)]
+    fn ramp(&self, current_a: &mut f32, goal_a: f32) -> bool {
+        if goal_a.is_nan() {
+            return true;
+        }
+        if *current_a < goal_a {
+            *current_a += self.step_a;
+            if *current_a >= goal_a {
+                *current_a = goal_a;
+                return true;
+            }
+        } else {
+            *current_a -= self.step_a;
+            if *current_a <= goal_a {
+                *current_a = goal_a;
+                return true;
+            }
+        }
+        false
     }
 }
 
@@ -176,10 +283,12 @@ mod tests {
         let c = Conditioning::new(
             &limiter,
             p.actuator.coil_factor_per_m,
-            BAKED_MEASURE.h_min_a_per_m(),
+            &BAKED_MEASURE,
+            p.preisach.reach_a_per_m,
             p.control.sample_rate_hz,
         )
         .unwrap();
+        assert!(matches!(c.sweep(), Sweep::Saturate { .. }));
         (c, limiter)
     }
 
@@ -258,15 +367,75 @@ mod tests {
     }
 
     #[test]
-    fn a_coil_that_cannot_saturate_the_rod_is_rejected() {
+    fn a_coil_that_cannot_saturate_the_rod_sweeps_its_reach_and_leaves_a_known_memory() {
         let (_, limiter) = baked();
-        let e = Conditioning::new(&limiter, 1000.0, -30_000.0, 10_000.0);
+        let m = &BAKED_MEASURE;
+        // c0 = 1000 /m: 2 kA/m at 2 A, far inside the ±30 kA/m grid.
+        let c = Conditioning::new(&limiter, 1000.0, m, None, 10_000.0).unwrap();
         assert_eq!(
-            e,
-            Err(ConditioningError::CannotSaturate {
-                field_at_limit_a_per_m: 2000.0,
-                needed_a_per_m: 30_000.0
-            })
+            c.sweep(),
+            Sweep::Reach {
+                low_a: -2.0,
+                high_a: 2.0
+            }
+        );
+        // Up first, then down, then to the target: within the limits, at most one step a tick.
+        let mut s = c.start(0.0, 0.5);
+        let (mut last, mut peak, mut trough) = (0.0f32, 0.0f32, 0.0f32);
+        let mut went_down_after_peak = false;
+        while !s.done() {
+            let i = c.step(&mut s);
+            assert!(i.abs() <= limiter.limit_a() + 1e-6);
+            assert!((i - last).abs() <= limiter.max_step_a() * 1.0001);
+            if peak == 2.0 && i < last {
+                went_down_after_peak = true;
+            }
+            peak = peak.max(i);
+            trough = trough.min(i);
+            last = i;
+        }
+        assert_eq!((peak, trough, last), (2.0, -2.0, 0.5));
+        assert!(went_down_after_peak);
+        // Whatever the history, the sweep leaves the memory `memory` describes, up to the cells
+        // with α beyond the reach's top and β below its bottom, which no current switches.
+        let expected: PreisachState<64> = c.memory(m);
+        for history in [&[0.3f32, -0.8, 0.1][..], &[-1.0, 1.0, -0.2, 0.4], &[]] {
+            let mut state = m.demagnetized::<64>();
+            for &h in history {
+                m.apply(&mut state, h * 30_000.0).unwrap();
+            }
+            m.apply(&mut state, 2000.0).unwrap();
+            m.apply(&mut state, -2000.0).unwrap();
+            let (a, b) = (m.output_a_per_m(&state), m.output_a_per_m(&expected));
+            // Only the cells with α > 2 kA/m and β < −2 kA/m remember the history.
+            let untouched: f32 = (0..25)
+                .flat_map(|i| (i..25).map(move |j| (i, j)))
+                .filter(|&(i, j)| i < 12 && j > 12)
+                .map(|(i, j)| m.cell_mass_a_per_m(i, j))
+                .sum();
+            assert!((a - b).abs() <= 2.0 * untouched + 1.0, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn a_given_reach_is_swept_even_when_the_coil_could_saturate_the_grid() {
+        let (_, limiter) = baked();
+        let m = &BAKED_MEASURE;
+        let c = Conditioning::new(&limiter, 15_400.0, m, Some([0.0, 21_560.0]), 10_000.0).unwrap();
+        assert_eq!(
+            c.sweep(),
+            Sweep::Reach {
+                low_a: 0.0,
+                high_a: 1.4
+            }
+        );
+        assert_eq!(
+            Conditioning::new(&limiter, 15_400.0, m, Some([1.0, 1.0]), 10_000.0),
+            Err(ConditioningError::Reach)
+        );
+        assert_eq!(
+            Conditioning::new(&limiter, f32::NAN, m, None, 10_000.0),
+            Err(ConditioningError::CoilFactor)
         );
     }
 }

@@ -3,9 +3,9 @@
 //! the host (`maglab track`, the QEMU capture check) runs the very same code, so a captured
 //! command stream can be reproduced bit for bit on the host.
 
-use super::conditioning::{Conditioning, ConditioningState};
+use super::conditioning::{Conditioning, ConditioningError, ConditioningState};
 use super::feedback::{FeedbackError, FeedbackLaw, FeedbackState};
-use super::inverter::{FastInverter, NaiveInverter, PreisachInverter};
+use super::inverter::{FastInverter, NaiveInverter, PreisachInverter, UNBOUNDED};
 use super::limiter::{CommandFlags, LimiterError, OutputLimiter};
 use super::{DynamicInverse, InverseMemory, RawCommand, StaticMode};
 use crate::params::ActuatorParameters;
@@ -141,6 +141,8 @@ pub enum LoopError {
     Limiter(LimiterError),
     /// Feedback settings.
     Feedback(FeedbackError),
+    /// Start-up conditioning settings.
+    Conditioning(ConditioningError),
 }
 
 /// Coefficients of the whole control interrupt.
@@ -153,6 +155,7 @@ pub struct ControlLoop<'m> {
     limiter: OutputLimiter,
     sensor: SensorScale,
     feedback: FeedbackLaw,
+    conditioning: Conditioning,
     coil_factor_per_m: f32,
 }
 
@@ -176,14 +179,24 @@ impl<'m> ControlLoop<'m> {
         .with_stuck_motion(
             0.1 * (params.trajectory.displacement_max_m - params.trajectory.displacement_min_m),
         );
+        let limiter = OutputLimiter::new(&params.control).map_err(LoopError::Limiter)?;
+        let conditioning = Conditioning::new(
+            &limiter,
+            params.actuator.coil_factor_per_m,
+            measure,
+            params.preisach.reach_a_per_m,
+            params.control.sample_rate_hz,
+        )
+        .map_err(LoopError::Conditioning)?;
         Ok(ControlLoop {
             measure,
             trajectory,
             feedback,
             dynamic: DynamicInverse::new(&params.actuator, step_s),
             static_mode: StaticMode::new(&params.actuator),
-            limiter: OutputLimiter::new(&params.control).map_err(LoopError::Limiter)?,
+            limiter,
             sensor: SensorScale::new(&params.sensor),
+            conditioning,
             coil_factor_per_m: params.actuator.coil_factor_per_m,
         })
     }
@@ -201,6 +214,11 @@ impl<'m> ControlLoop<'m> {
     /// The output limiter.
     pub fn limiter(&self) -> &OutputLimiter {
         &self.limiter
+    }
+
+    /// The start-up conditioning the loop's first memory assumes.
+    pub fn conditioning(&self) -> &Conditioning {
+        &self.conditioning
     }
 
     /// The sensor's scaling and validity.
@@ -225,8 +243,9 @@ impl<'m> ControlLoop<'m> {
         self
     }
 
-    /// Initial state: trajectory on its limit cycle; the Preisach memory starts at negative
-    /// saturation and is driven to the target of the first sample (so `H, M` start consistent
+    /// Initial state: trajectory on its limit cycle; the Preisach memory starts where the
+    /// conditioning leaves it ([`ControlLoop::initial_preisach`]) and is driven to the target of
+    /// the first sample (so `H, M` start consistent
     /// with `ȳ(t_0)`), and the held current is the static current `H_0 / c0` of that field.
     /// A plant simulation starts from the same memory ([`ControlLoop::initial_preisach`]) driven
     /// to `core.memory.h_a_per_m`.
@@ -259,9 +278,10 @@ impl<'m> ControlLoop<'m> {
         }
     }
 
-    /// The Preisach memory the loop starts from (negative saturation, before the first target).
+    /// The Preisach memory the loop starts from, before the first target: where the start-up
+    /// conditioning leaves it ([`Conditioning::memory`]: negative saturation, or the reach swept).
     pub fn initial_preisach<const N: usize>(&self) -> PreisachState<N> {
-        self.measure.negative_saturation()
+        self.conditioning.memory(self.measure)
     }
 
     /// Initial state with the fast Preisach memory, its resolution set to
@@ -271,7 +291,8 @@ impl<'m> ControlLoop<'m> {
         preisach.set_resolution(MEMORY_RESOLUTION_CELLS2);
         let core = self.initial_core(
             kind,
-            &mut FastInverter {
+            // Start-up, not the interrupt: the first target is reached exactly, however far.
+            &mut FastInverter::<N, UNBOUNDED> {
                 measure: self.measure,
                 state: &mut preisach,
             },
@@ -281,7 +302,7 @@ impl<'m> ControlLoop<'m> {
 
     /// Initial state with the naive Preisach memory.
     pub fn init_naive<const N: usize>(&self, kind: InverseKind) -> NaiveLoopState<N> {
-        let mut preisach = NaiveState::<N>::negative_saturation();
+        let mut preisach = NaiveState::<N>::replaying(&self.initial_preisach::<N>());
         let core = self.initial_core(
             kind,
             &mut NaiveInverter {
@@ -366,7 +387,7 @@ impl<'m> ControlLoop<'m> {
     /// One interrupt with the fast exact inverse.
     #[inline]
     pub fn tick<const N: usize>(&self, kind: InverseKind, state: &mut LoopState<N>) -> TickOutput {
-        let mut inv = FastInverter {
+        let mut inv = FastInverter::<N> {
             measure: self.measure,
             state: &mut state.preisach,
         };
@@ -383,7 +404,7 @@ impl<'m> ControlLoop<'m> {
         state: &mut LoopState<N>,
         desired: &DesiredMotion,
     ) -> TickOutput {
-        let mut inv = FastInverter {
+        let mut inv = FastInverter::<N> {
             measure: self.measure,
             state: &mut state.preisach,
         };
@@ -763,7 +784,7 @@ mod tests {
                 velocity_m_per_s: bad,
                 ..good.desired
             };
-            let mut inv = FastInverter {
+            let mut inv = FastInverter::<N> {
                 measure: &BAKED_MEASURE,
                 state: &mut st.preisach,
             };

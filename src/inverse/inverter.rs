@@ -7,6 +7,16 @@ use crate::preisach::baselines::{everett_bisection_invert, RelayGrid};
 use crate::preisach::naive::NaiveState;
 use crate::preisach::{PreisachMeasure, PreisachState, Saturation, SolveError};
 
+/// The most pieces (grid intervals or wiped-out reversal points along the input's path) the
+/// control interrupt's exact inverse walks in one tick. Each costs one Everett evaluation and the
+/// bookkeeping of the walk, about 60 instructions; at 8 the inverse stays under ~500
+/// instructions whatever the target, so the whole handler with the feedback stays within its
+/// 1,500-instruction goal under any model error (measured: `cargo xtask hil --interrupt-matrix`,
+/// docs/firmware.md). On the model's own plant a tick walks 1–4 pieces: the budget only binds
+/// when the target jumps (a wrong model, a sensor glitch the feedback acts on), and then the
+/// field moves toward the target at 8 pieces a tick.
+pub const INVERSE_PIECES_PER_TICK: usize = 3;
+
 /// One committed inverse step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Inverted {
@@ -24,18 +34,27 @@ pub trait PreisachInverter {
     fn invert_to(&mut self, m_target_a_per_m: f32) -> Result<Inverted, SolveError>;
 }
 
-/// The exact inverse of the core (O(grid lines crossed + reversals wiped out)).
-pub struct FastInverter<'a, const N: usize> {
+/// The exact inverse of the core (O(grid lines crossed + reversals wiped out)), walking at most
+/// `MAX_PIECES` pieces ([`PreisachMeasure::invert_within`]): [`INVERSE_PIECES_PER_TICK`] in the
+/// control interrupt (the default), [`UNBOUNDED`] at start-up.
+pub struct FastInverter<'a, const N: usize, const MAX_PIECES: usize = INVERSE_PIECES_PER_TICK> {
     /// Coefficients.
     pub measure: &'a PreisachMeasure,
     /// Memory.
     pub state: &'a mut PreisachState<N>,
 }
 
-impl<const N: usize> PreisachInverter for FastInverter<'_, N> {
+/// A piece budget no walk reaches: the exact `invert`.
+pub const UNBOUNDED: usize = usize::MAX;
+
+impl<const N: usize, const MAX_PIECES: usize> PreisachInverter for FastInverter<'_, N, MAX_PIECES> {
+    /// The exact inverse within the piece budget: a target further than that along the path is
+    /// approached and reported as saturated (the next tick continues).
     #[inline]
     fn invert_to(&mut self, m_target_a_per_m: f32) -> Result<Inverted, SolveError> {
-        let s = self.measure.invert(self.state, m_target_a_per_m)?;
+        let s = self
+            .measure
+            .invert_within::<N, MAX_PIECES>(self.state, m_target_a_per_m)?;
         Ok(Inverted {
             h_a_per_m: s.h_a_per_m,
             m_a_per_m: s.m_a_per_m,
@@ -58,9 +77,9 @@ impl<const N: usize> PreisachInverter for NaiveInverter<'_, N> {
             return Err(SolveError::NonFinite);
         }
         let (h, m) = self.measure.naive_solve(self.state, 0.0, m_target_a_per_m);
-        // Bisection clamps to the field range: a target beyond ±Σw ends at a range end.
-        let saturated = m_target_a_per_m > self.measure.saturation_a_per_m()
-            || m_target_a_per_m < -self.measure.saturation_a_per_m();
+        // Bisection clamps to the field range: a target beyond the output range ends at an end.
+        let (low, high) = self.measure.output_range_a_per_m();
+        let saturated = m_target_a_per_m > high || m_target_a_per_m < low;
         Ok(Inverted {
             h_a_per_m: h,
             m_a_per_m: m,
@@ -84,11 +103,11 @@ impl<const N: usize> PreisachInverter for EverettBisectionInverter<'_, N> {
             return Err(SolveError::NonFinite);
         }
         let (h, m) = everett_bisection_invert(self.measure, self.state, m_target_a_per_m);
-        let saturation = self.measure.saturation_a_per_m();
+        let (low, high) = self.measure.output_range_a_per_m();
         Ok(Inverted {
             h_a_per_m: h,
             m_a_per_m: m,
-            saturated: m_target_a_per_m.abs() > saturation,
+            saturated: m_target_a_per_m > high || m_target_a_per_m < low,
         })
     }
 }

@@ -20,7 +20,7 @@ mod static_inverse;
 mod static_mode;
 
 pub use conditioning::{
-    Conditioning, ConditioningError, ConditioningState, HOLD_S, RAMP_FULL_SCALE_S,
+    Conditioning, ConditioningError, ConditioningState, Sweep, HOLD_S, RAMP_FULL_SCALE_S,
 };
 pub use control_loop::{
     ControlLoop, InverseKind, LoopCore, LoopCounters, LoopError, LoopState, NaiveLoopState,
@@ -30,7 +30,7 @@ pub use dynamic::DynamicInverse;
 pub use feedback::{FeedbackError, FeedbackLaw, FeedbackState};
 pub use inverter::{
     EverettBisectionInverter, FastInverter, Inverted, NaiveInverter, PreisachInverter,
-    RelayGridInverter,
+    RelayGridInverter, INVERSE_PIECES_PER_TICK, UNBOUNDED,
 };
 pub use limiter::{CommandFlags, LimiterError, OutputLimiter};
 pub use static_inverse::{StaticInverse, StaticInverseOutput};

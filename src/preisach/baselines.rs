@@ -152,7 +152,7 @@ impl<'m> RelayGrid<'m> {
         if commit {
             self.x = x;
         }
-        sum + self.measure.reversible_at(x)
+        sum + self.measure.reversible_at(x) + self.measure.offset_a_per_m
     }
 
     /// Output at the current input, A/m.

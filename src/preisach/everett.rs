@@ -95,8 +95,14 @@ pub struct PreisachMeasure {
     pub(crate) widths_a_per_m: [f32; LEVELS],
     /// 1 / width of each interval.
     pub(crate) inverse_widths_per_a_per_m: [f32; LEVELS],
-    /// Σ w, the saturation output, A/m.
+    /// Σ w, the saturation output of the hysteretic part, A/m.
     pub(crate) total_a_per_m: f32,
+    /// `Σ w − M_off`: the output is `M = 2 μ(P₊) − bias (+ R)`. Equal to `Σ w` without an
+    /// offset (the same f32, so such a measure is bit for bit the one built without it).
+    pub(crate) output_bias_a_per_m: f32,
+    /// `M_off`, the magnetization of the part of the Preisach plane the coil never switches
+    /// (see [`PreisachMeasure::with_offset`]), A/m.
+    pub(crate) offset_a_per_m: f32,
     /// Largest mass per unit normalized area over all cells (triangles count double), A/m.
     pub(crate) max_density_a_per_m: f32,
     /// `w[j][i]` = mass of cell `(i, j)` for `i <= j`, 0 otherwise.
@@ -267,6 +273,8 @@ impl PreisachMeasure {
             widths_a_per_m,
             inverse_widths_per_a_per_m,
             total_a_per_m: total as f32,
+            output_bias_a_per_m: total as f32,
+            offset_a_per_m: 0.0,
             max_density_a_per_m: max_density as f32,
             w,
             strips,
@@ -322,6 +330,38 @@ impl PreisachMeasure {
         self
     }
 
+    /// Adds a constant magnetization `M_off` to the output: `M = Γ[h] + M_off`.
+    ///
+    /// On a rod the coil cannot saturate, the field stays in the reach `[H_lo, H_hi]`. The
+    /// hysterons with `α > H_hi` and `β < H_lo` never switch, those with both thresholds beyond
+    /// one end switch once at the first input and then stay; the grid's outermost intervals hold
+    /// the one-way bands (`β < H_lo`: can only switch up; `α > H_hi`: only down), and what is
+    /// left is a constant, `M_off` (docs/model.md, "Rods the coil cannot saturate"). Only the
+    /// output moves: the forward update, the exact inverse and the solve see `2 μ(P₊) − (Σ w −
+    /// M_off)` and stay exact. `M_off = 0` gives the measure without an offset, bit for bit.
+    ///
+    /// The caller guarantees what `actuator-params` validates: `M_off` finite.
+    pub const fn with_offset(mut self, offset_a_per_m: f32) -> Self {
+        self.offset_a_per_m = offset_a_per_m;
+        self.output_bias_a_per_m = (self.total_a_per_m as f64 - offset_a_per_m as f64) as f32;
+        self
+    }
+
+    /// `M_off`, the constant magnetization of the part of the plane the coil never switches, A/m
+    /// (0 without one).
+    pub fn offset_a_per_m(&self) -> f32 {
+        self.offset_a_per_m
+    }
+
+    /// The output at negative and at positive saturation of the grid, A/m:
+    /// `M_off ∓ (Σ w + ½ Σ ρ)`.
+    pub fn output_range_a_per_m(&self) -> (f32, f32) {
+        (
+            self.offset_a_per_m - self.saturation_a_per_m,
+            self.offset_a_per_m + self.saturation_a_per_m,
+        )
+    }
+
     /// Lower end of the field range, A/m.
     pub fn h_min_a_per_m(&self) -> f32 {
         self.h_min_a_per_m
@@ -364,7 +404,8 @@ impl PreisachMeasure {
         self.uniform
     }
     /// Saturation output: `Σ w` plus the reversible part at the top of the grid, A/m (the output
-    /// at negative saturation is minus it).
+    /// at negative saturation is minus it; with an offset both move by `M_off`, see
+    /// [`PreisachMeasure::output_range_a_per_m`]).
     pub fn saturation_a_per_m(&self) -> f32 {
         self.saturation_a_per_m
     }

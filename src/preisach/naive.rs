@@ -27,6 +27,17 @@ impl<const N: usize> NaiveState<N> {
         NaiveState { points, x: 0.0 }
     }
 
+    /// The memory of the fast operator's state `fast`: its reversal points replayed in order,
+    /// then its input (a staircase is the record of its own dominant reversals).
+    pub fn replaying<const M: usize>(fast: &super::PreisachState<M>) -> Self {
+        let mut state = Self::negative_saturation();
+        for x in fast.reversal_points_normalized().skip(1) {
+            state.move_to(x);
+        }
+        state.move_to(fast.input_normalized());
+        state
+    }
+
     fn rising(&self) -> bool {
         self.points.len() % 2 == 1
     }
@@ -119,7 +130,7 @@ impl PreisachMeasure {
             let lo = pts.get(n - 1).copied().unwrap_or(0.0);
             plus += region_mass(self, lo, LEVELS as f32, state.x);
         }
-        2.0 * plus - self.total_a_per_m + self.reversible_at(state.x)
+        2.0 * plus - self.output_bias_a_per_m + self.reversible_at(state.x)
     }
 
     /// Naive inverse: bisection (32 halvings of the field range) for `a·h + Γ(h) = r`, each trial a

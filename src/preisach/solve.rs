@@ -31,6 +31,10 @@ pub enum Saturation {
     Low,
     /// The target was above what is reachable: clamped to positive saturation.
     High,
+    /// The walk stopped at the end of its piece budget
+    /// ([`PreisachMeasure::invert_within`]) short of the target: the memory is committed where
+    /// it stopped, on the path to the target (the next call continues from there).
+    Truncated,
 }
 
 /// The solution of an inverse or a solve, already committed to the state.
@@ -63,7 +67,26 @@ impl PreisachMeasure {
     ) -> Result<Solution, SolveError> {
         // The same walk as `solve` with `a = 0` known at compile time (the control interrupt's
         // case): the `a·h` terms drop out; the results are bit-identical to `solve(state, 0, m)`.
-        self.solve_impl::<N, true>(state, 0.0, m_target_a_per_m)
+        self.solve_impl::<N, true, { usize::MAX }>(state, 0.0, m_target_a_per_m)
+    }
+
+    /// [`PreisachMeasure::invert`] walking at most `max_pieces` pieces: a target further away
+    /// stops the walk at the end of the last piece ([`Saturation::Truncated`]), on the monotone
+    /// path toward it, the memory committed there. Each piece ends at a grid line or a wiped-out
+    /// reversal point and costs one Everett evaluation and a few compares, so the call's cost is
+    /// bounded by design whatever the target: the control interrupt's worst case
+    /// (`inverse::control_loop::INVERSE_PIECES_PER_TICK`). Within the budget it is exactly
+    /// `invert`.
+    ///
+    /// The budget is a constant, so the unbounded walk and this one are each compiled for their
+    /// own bound (a run-time budget cost the control interrupt ~20 instructions a tick).
+    #[inline]
+    pub fn invert_within<const N: usize, const MAX_PIECES: usize>(
+        &self,
+        state: &mut PreisachState<N>,
+        m_target_a_per_m: f32,
+    ) -> Result<Solution, SolveError> {
+        self.solve_impl::<N, true, MAX_PIECES>(state, 0.0, m_target_a_per_m)
     }
 
     /// Solves `a·h + Γ(h) = r` (`a >= 0`, units A/m) from the current state and commits the state.
@@ -76,12 +99,12 @@ impl PreisachMeasure {
         a: f32,
         r_a_per_m: f32,
     ) -> Result<Solution, SolveError> {
-        self.solve_impl::<N, false>(state, a, r_a_per_m)
+        self.solve_impl::<N, false, { usize::MAX }>(state, a, r_a_per_m)
     }
 
     /// `solve`, with `PLAIN` telling that `a` is 0.
     #[inline(always)]
-    fn solve_impl<const N: usize, const PLAIN: bool>(
+    fn solve_impl<const N: usize, const PLAIN: bool, const MAX_PIECES: usize>(
         &self,
         state: &mut PreisachState<N>,
         a: f32,
@@ -96,16 +119,16 @@ impl PreisachMeasure {
         // Without a reversible part its terms are compiled out (`REV = false`): the control
         // interrupt of an actuator with `M = Γ[H]` pays one branch for it.
         if self.has_reversible {
-            Ok(self.solve_walk::<N, PLAIN, true>(state, a, r_a_per_m))
+            Ok(self.solve_walk::<N, PLAIN, true, MAX_PIECES>(state, a, r_a_per_m))
         } else {
-            Ok(self.solve_walk::<N, PLAIN, false>(state, a, r_a_per_m))
+            Ok(self.solve_walk::<N, PLAIN, false, MAX_PIECES>(state, a, r_a_per_m))
         }
     }
 
     /// The walk of [`Self::solve_impl`], with `REV` telling whether the measure has a reversible
     /// part.
     #[inline(always)]
-    fn solve_walk<const N: usize, const PLAIN: bool, const REV: bool>(
+    fn solve_walk<const N: usize, const PLAIN: bool, const REV: bool, const MAX_PIECES: usize>(
         &self,
         state: &mut PreisachState<N>,
         a: f32,
@@ -114,7 +137,7 @@ impl PreisachMeasure {
         let m_now = if REV {
             self.output_a_per_m(state)
         } else {
-            2.0 * state.plus_mass - self.total_a_per_m
+            2.0 * state.plus_mass - self.output_bias_a_per_m
         };
         let g_now = if PLAIN {
             m_now
@@ -122,9 +145,9 @@ impl PreisachMeasure {
             a * self.denormalize(state.x) + m_now
         };
         if r_a_per_m > g_now {
-            self.solve_rising::<N, PLAIN, REV>(state, a, r_a_per_m)
+            self.solve_rising::<N, PLAIN, REV, MAX_PIECES>(state, a, r_a_per_m)
         } else if r_a_per_m < g_now {
-            self.solve_falling::<N, PLAIN, REV>(state, a, r_a_per_m)
+            self.solve_falling::<N, PLAIN, REV, MAX_PIECES>(state, a, r_a_per_m)
         } else {
             Solution {
                 h_a_per_m: self.denormalize(state.x),
@@ -153,7 +176,7 @@ impl PreisachMeasure {
     }
 
     #[inline(always)]
-    fn solve_rising<const N: usize, const PLAIN: bool, const REV: bool>(
+    fn solve_rising<const N: usize, const PLAIN: bool, const REV: bool, const MAX_PIECES: usize>(
         &self,
         state: &mut PreisachState<N>,
         a: f32,
@@ -162,65 +185,74 @@ impl PreisachMeasure {
         if !state.rising() {
             self.reverse(state);
         }
-        for _ in 0..(LEVELS + N + 2) {
-            let m = state.last_index();
-            let base = state
-                .vertices
-                .get(m)
-                .copied()
-                .unwrap_or(super::staircase::Vertex { x: 0.0, cum: 0.0 });
-            let x0 = state.x;
-            let cap = if m >= 2 {
-                state.vertex_x(m - 1)
-            } else {
-                LEVELS as f32
-            };
-            let (big_j, s0) = split(x0);
-            // d(a·h + R)/dx on this interval (every interval has width Δ on a uniform grid).
-            let a_cells = self.linear_per_cell::<PLAIN, REV>(a, big_j);
-            let tag = big_j as u32;
-            let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, cap) {
-                Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
-                None => {
-                    let grid_next = if s0 < 1.0 { big_j as f32 + 1.0 } else { x0 };
-                    let xb = min_f32(grid_next, cap);
-                    let (big_i, t) = split(base.x);
-                    let quad = self.quadratic_in_alpha(big_j, big_i, t);
-                    (quad, xb, base.cum + quad.at(xb - big_j as f32), false)
+        // Without a budget the walk needs at most LEVELS + N + 2 pieces (every grid line and
+        // every stored reversal) to saturate; with one, running out ends it short of the target.
+        let full = LEVELS + N + 2;
+        let budget = if MAX_PIECES < full { MAX_PIECES } else { full };
+        'walk: {
+            for _ in 0..budget {
+                let m = state.last_index();
+                let base = state
+                    .vertices
+                    .get(m)
+                    .copied()
+                    .unwrap_or(super::staircase::Vertex { x: 0.0, cum: 0.0 });
+                let x0 = state.x;
+                let cap = if m >= 2 {
+                    state.vertex_x(m - 1)
+                } else {
+                    LEVELS as f32
+                };
+                let (big_j, s0) = split(x0);
+                // d(a·h + R)/dx on this interval (every interval has width Δ on a uniform grid).
+                let a_cells = self.linear_per_cell::<PLAIN, REV>(a, big_j);
+                let tag = big_j as u32;
+                let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, cap) {
+                    Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
+                    None => {
+                        let grid_next = if s0 < 1.0 { big_j as f32 + 1.0 } else { x0 };
+                        let xb = min_f32(grid_next, cap);
+                        let (big_i, t) = split(base.x);
+                        let quad = self.quadratic_in_alpha(big_j, big_i, t);
+                        (quad, xb, base.cum + quad.at(xb - big_j as f32), false)
+                    }
+                };
+                let g_b = self.g::<PLAIN, REV>(a, xb, big_j, plus_b);
+                if g_b >= r {
+                    let q = r - self.g::<PLAIN, REV>(a, x0, big_j, state.plus_mass);
+                    let b_lin = 2.0 * quad.slope(s0) + a_cells;
+                    let a_quad = 2.0 * quad.q2;
+                    let sigma = positive_root(a_quad, b_lin, q, xb - x0);
+                    state.x = x0 + sigma;
+                    // μ(P₊) on this piece is the same quadratic: no second Everett evaluation.
+                    state.plus_mass = base.cum + quad.at(state.x - big_j as f32);
+                    if !remembered {
+                        state.piece = PieceMemo {
+                            tag,
+                            base_x: base.x,
+                            base_cum: base.cum,
+                            bound: cap,
+                            quad,
+                            end_x: xb,
+                            end_plus_mass: plus_b,
+                        };
+                    }
+                    return self.solution_in::<N, REV>(state, big_j);
                 }
-            };
-            let g_b = self.g::<PLAIN, REV>(a, xb, big_j, plus_b);
-            if g_b >= r {
-                let q = r - self.g::<PLAIN, REV>(a, x0, big_j, state.plus_mass);
-                let b_lin = 2.0 * quad.slope(s0) + a_cells;
-                let a_quad = 2.0 * quad.q2;
-                let sigma = positive_root(a_quad, b_lin, q, xb - x0);
-                state.x = x0 + sigma;
-                // μ(P₊) on this piece is the same quadratic: no second Everett evaluation.
-                state.plus_mass = base.cum + quad.at(state.x - big_j as f32);
-                if !remembered {
-                    state.piece = PieceMemo {
-                        tag,
-                        base_x: base.x,
-                        base_cum: base.cum,
-                        bound: cap,
-                        quad,
-                        end_x: xb,
-                        end_plus_mass: plus_b,
-                    };
+                state.x = xb;
+                state.plus_mass = plus_b;
+                if xb >= cap && m >= 2 {
+                    self.wipe_out(state, xb);
+                    self.update_plus_mass(state);
+                } else if xb >= LEVELS as f32 {
+                    break 'walk;
                 }
-                return self.solution_in::<N, REV>(state, big_j);
             }
-            state.x = xb;
-            state.plus_mass = plus_b;
-            if xb >= cap && m >= 2 {
-                self.wipe_out(state, xb);
-                self.update_plus_mass(state);
-            } else if xb >= LEVELS as f32 {
-                break;
+            if MAX_PIECES < full {
+                return self.solution(state, Saturation::Truncated);
             }
         }
-        // Positive saturation reached (or, defensively, the piece budget exhausted).
+        // Positive saturation reached (or, defensively, the full budget exhausted).
         state.x = LEVELS as f32;
         self.wipe_out(state, state.x);
         self.update_plus_mass(state);
@@ -238,7 +270,12 @@ impl PreisachMeasure {
     }
 
     #[inline(always)]
-    fn solve_falling<const N: usize, const PLAIN: bool, const REV: bool>(
+    fn solve_falling<
+        const N: usize,
+        const PLAIN: bool,
+        const REV: bool,
+        const MAX_PIECES: usize,
+    >(
         &self,
         state: &mut PreisachState<N>,
         a: f32,
@@ -247,59 +284,66 @@ impl PreisachMeasure {
         if state.rising() {
             self.reverse(state);
         }
-        for _ in 0..(LEVELS + N + 2) {
-            let m = state.last_index();
-            let base = state
-                .vertices
-                .get(m)
-                .copied()
-                .unwrap_or(super::staircase::Vertex { x: 0.0, cum: 0.0 });
-            let x0 = state.x;
-            let floor = if m >= 3 { state.vertex_x(m - 1) } else { 0.0 };
-            let (big_i, t0) = split_down(x0);
-            let a_cells = self.linear_per_cell::<PLAIN, REV>(a, big_i);
-            let tag = big_i as u32 | PieceMemo::FALLING;
-            let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, floor) {
-                Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
-                None => {
-                    let grid_next = if t0 > 0.0 { big_i as f32 } else { x0 };
-                    let xb = max_f32(grid_next, floor);
-                    let (big_j, s) = split(base.x);
-                    let quad = self.quadratic_in_beta(big_j, s, big_i);
-                    // v = I + 1 - x grows as x falls.
-                    (quad, xb, base.cum - quad.at(big_i as f32 + 1.0 - xb), false)
+        let full = LEVELS + N + 2;
+        let budget = if MAX_PIECES < full { MAX_PIECES } else { full };
+        'walk: {
+            for _ in 0..budget {
+                let m = state.last_index();
+                let base = state
+                    .vertices
+                    .get(m)
+                    .copied()
+                    .unwrap_or(super::staircase::Vertex { x: 0.0, cum: 0.0 });
+                let x0 = state.x;
+                let floor = if m >= 3 { state.vertex_x(m - 1) } else { 0.0 };
+                let (big_i, t0) = split_down(x0);
+                let a_cells = self.linear_per_cell::<PLAIN, REV>(a, big_i);
+                let tag = big_i as u32 | PieceMemo::FALLING;
+                let (quad, xb, plus_b, remembered) = match state.piece.lookup(tag, base, floor) {
+                    Some((quad, xb, plus_b)) => (quad, xb, plus_b, true),
+                    None => {
+                        let grid_next = if t0 > 0.0 { big_i as f32 } else { x0 };
+                        let xb = max_f32(grid_next, floor);
+                        let (big_j, s) = split(base.x);
+                        let quad = self.quadratic_in_beta(big_j, s, big_i);
+                        // v = I + 1 - x grows as x falls.
+                        (quad, xb, base.cum - quad.at(big_i as f32 + 1.0 - xb), false)
+                    }
+                };
+                let v0 = 1.0 - t0;
+                let g_b = self.g::<PLAIN, REV>(a, xb, big_i, plus_b);
+                if g_b <= r {
+                    let q = self.g::<PLAIN, REV>(a, x0, big_i, state.plus_mass) - r;
+                    let b_lin = 2.0 * quad.slope(v0) + a_cells;
+                    let a_quad = 2.0 * quad.q2;
+                    let sigma = positive_root(a_quad, b_lin, q, x0 - xb);
+                    state.x = x0 - sigma;
+                    state.plus_mass = base.cum - quad.at(big_i as f32 + 1.0 - state.x);
+                    if !remembered {
+                        state.piece = PieceMemo {
+                            tag,
+                            base_x: base.x,
+                            base_cum: base.cum,
+                            bound: floor,
+                            quad,
+                            end_x: xb,
+                            end_plus_mass: plus_b,
+                        };
+                    }
+                    return self.solution_in::<N, REV>(state, big_i);
                 }
-            };
-            let v0 = 1.0 - t0;
-            let g_b = self.g::<PLAIN, REV>(a, xb, big_i, plus_b);
-            if g_b <= r {
-                let q = self.g::<PLAIN, REV>(a, x0, big_i, state.plus_mass) - r;
-                let b_lin = 2.0 * quad.slope(v0) + a_cells;
-                let a_quad = 2.0 * quad.q2;
-                let sigma = positive_root(a_quad, b_lin, q, x0 - xb);
-                state.x = x0 - sigma;
-                state.plus_mass = base.cum - quad.at(big_i as f32 + 1.0 - state.x);
-                if !remembered {
-                    state.piece = PieceMemo {
-                        tag,
-                        base_x: base.x,
-                        base_cum: base.cum,
-                        bound: floor,
-                        quad,
-                        end_x: xb,
-                        end_plus_mass: plus_b,
-                    };
+                state.x = xb;
+                state.plus_mass = plus_b;
+                if xb <= floor && (m >= 3 || xb <= 0.0) {
+                    self.wipe_out(state, xb);
+                    self.update_plus_mass(state);
+                    if xb <= 0.0 {
+                        break 'walk;
+                    }
                 }
-                return self.solution_in::<N, REV>(state, big_i);
             }
-            state.x = xb;
-            state.plus_mass = plus_b;
-            if xb <= floor && (m >= 3 || xb <= 0.0) {
-                self.wipe_out(state, xb);
-                self.update_plus_mass(state);
-                if xb <= 0.0 {
-                    break;
-                }
+            if MAX_PIECES < full {
+                return self.solution(state, Saturation::Truncated);
             }
         }
         state.x = 0.0;
@@ -321,7 +365,7 @@ impl PreisachMeasure {
     /// `M = 2 μ(P₊) − Σ w (+ R(x))` at `x` in interval `k`.
     #[inline(always)]
     fn m_in<const REV: bool>(&self, x: f32, k: usize, plus_mass: f32) -> f32 {
-        let hysteretic = 2.0 * plus_mass - self.total_a_per_m;
+        let hysteretic = 2.0 * plus_mass - self.output_bias_a_per_m;
         if REV {
             hysteretic + self.reversible_in(x, k)
         } else {

@@ -333,6 +333,81 @@ impl PreisachMeasure {
         state
     }
 
+    /// The state an AC demagnetization about the field `h_a_per_m` leaves: the staircase along
+    /// `α + β = 2c` (`c = x(h)`, the normalized field) where that line crosses the grid, the input
+    /// at `c`.
+    ///
+    /// * `c` on a grid line (an integer): the line runs through grid points, so it cuts every cell
+    ///   it crosses corner to corner into two equal halves. The history "up to `2c − ½ − k`, down
+    ///   to `k + 1`", `k = 0 … c − 1` (maxima above the range clamped to its top) puts one step
+    ///   at the middle height of each such cell: exactly half of it switched on, as in the ideal
+    ///   state, and every cell wholly below the line on. Exact.
+    /// * `c` in the middle of an interval: [`DEMAGNETIZATION_HISTORY`] moved by `c − L/2`, an
+    ///   integer, so its exactness argument holds cell for cell (inputs clamped to the grid).
+    ///   About the middle of the range it is [`PreisachMeasure::demagnetized`].
+    /// * elsewhere the same moved history: each step's two corner triangles (area 1/8 each,
+    ///   opposite signs) may fall into different cells, so each of the `⌊L/2⌋ + 2` steps moves
+    ///   `μ(P₊)` by at most `ρ_max / 8`: the output is within `(⌊L/2⌋ + 2) ρ_max / 4` of the ideal
+    ///   state (`ρ_max`: [`PreisachMeasure::max_density_a_per_m`]; tested in `host-tests`).
+    ///
+    /// On a grid built around the reach of a coil that cannot saturate the rod, the outer
+    /// intervals collapse everything beyond the reach; this state is then the convention for the
+    /// one-way bands there that the identified offset `M_off` is measured against. A non-finite
+    /// field gives the state about the middle.
+    pub fn demagnetized_at<const N: usize>(&self, h_a_per_m: f32) -> PreisachState<N> {
+        let middle = 0.5 * LEVELS as f32;
+        let c = if h_a_per_m.is_finite() {
+            self.normalize(h_a_per_m)
+        } else {
+            middle
+        };
+        // Within this of a line or a mid-interval the construction is taken as that case (an f32
+        // normalization of a field meant to lie on a line is off by a few ulps).
+        const SNAP: f32 = 1e-4;
+        let line = libm::roundf(c);
+        let mut state = self.negative_saturation::<N>();
+        if libm::fabsf(c - line) <= SNAP {
+            let lines = line as usize;
+            for k in 0..lines {
+                let max = 2.0 * line - 0.5 - k as f32;
+                self.move_to(&mut state, max.min(LEVELS as f32));
+                self.move_to(&mut state, (k + 1) as f32);
+            }
+            return state;
+        }
+        let mid = libm::floorf(c) + 0.5;
+        let shift = if libm::fabsf(c - mid) <= SNAP {
+            mid - middle
+        } else {
+            c - middle
+        };
+        if shift == 0.0 {
+            return self.demagnetized();
+        }
+        for &x in DEMAGNETIZATION_HISTORY.iter() {
+            self.move_to(&mut state, (x + shift).clamp(0.0, LEVELS as f32));
+        }
+        state
+    }
+
+    /// The state a sweep of the reach `[low, high]` (A/m) leaves: from negative saturation up to
+    /// `high`, then down to `low` (the start-up conditioning of a rod the coil cannot saturate,
+    /// `inverse::conditioning`). Every cell with `α <= high` has been switched up and every cell
+    /// with `β >= low` down, so the state depends on the history before only through the cells
+    /// with `α > high` and `β < low`, taken as down. Non-finite fields leave negative saturation.
+    pub fn conditioned<const N: usize>(
+        &self,
+        low_a_per_m: f32,
+        high_a_per_m: f32,
+    ) -> PreisachState<N> {
+        let mut state = self.negative_saturation::<N>();
+        if low_a_per_m.is_finite() && high_a_per_m.is_finite() {
+            self.move_to(&mut state, self.normalize(high_a_per_m));
+            self.move_to(&mut state, self.normalize(low_a_per_m));
+        }
+        state
+    }
+
     /// Sets the input to `h_a_per_m` (A/m) and returns the output `M` (A/m). Inputs beyond the
     /// grid saturate the memory. A NaN or infinite input is rejected and the state is unchanged.
     ///
@@ -353,7 +428,7 @@ impl PreisachMeasure {
     /// Current output `M = 2 μ(P₊) - Σ w + R(x)`, A/m (`R` the reversible part, 0 without one).
     #[inline]
     pub fn output_a_per_m<const N: usize>(&self, state: &PreisachState<N>) -> f32 {
-        let hysteretic = 2.0 * state.plus_mass - self.total_a_per_m;
+        let hysteretic = 2.0 * state.plus_mass - self.output_bias_a_per_m;
         if self.has_reversible {
             hysteretic + self.reversible_at(state.x)
         } else {

@@ -353,6 +353,27 @@ impl RelayPreisach {
         state
     }
 
+    /// The ideal AC-demagnetized state about normalized input `c`, *defined by its region*:
+    /// every relay with `α + β < 2c` on, the input at `c` (no history, so it checks the core's
+    /// histories independently).
+    pub fn ideal_demagnetized(&self, c: f64) -> RelayState {
+        let mut alpha = vec![0.0; self.relay_count()];
+        for t in &self.by_alpha {
+            alpha[t.relay as usize] = t.x;
+        }
+        let mut state = self.negative_saturation();
+        for t in &self.by_beta {
+            let r = t.relay as usize;
+            if alpha[r] + t.x < 2.0 * c {
+                state.on[r] = true;
+                state.plus_mass_a_per_m += self.relay_mass_a_per_m[r];
+                state.switches += 1;
+            }
+        }
+        state.x = c;
+        state
+    }
+
     /// Moves the input monotonically to normalized `x` and returns the output `M` (A/m).
     /// Panics on a non-finite `x` (a test bug, not a data condition).
     pub fn apply_normalized(&self, state: &mut RelayState, x: f64) -> f64 {

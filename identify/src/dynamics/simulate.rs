@@ -42,7 +42,7 @@ fn start_memory(start: StartState, measure: &PreisachMeasure) -> PreisachState<D
     match start {
         StartState::NegativeSaturation => measure.negative_saturation(),
         StartState::PositiveSaturation => measure.positive_saturation(),
-        _ => measure.demagnetized(),
+        _ => measure.demagnetized_at(0.0),
     }
 }
 

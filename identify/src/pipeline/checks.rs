@@ -46,9 +46,18 @@ pub fn warnings(
         .and_then(|fit| fit.refined.as_ref())
         .and_then(|r| r.details.get("fitted_up_to_hz"))
         .and_then(serde_json::Value::as_f64);
+    let sum_a_per_m = masses.fit.weights.iter().sum();
+    let mass_check = if masses.params.preisach.reach_a_per_m.is_some() {
+        quality::Masses::Reach {
+            sum_a_per_m,
+            offset_a_per_m: masses.params.preisach.offset_a_per_m,
+        }
+    } else {
+        quality::Masses::Saturating { sum_a_per_m }
+    };
     let mut warnings = quality::warnings(
         &masses.files,
-        masses.fit.weights.iter().sum(),
+        mass_check,
         masses.params.actuator.saturation_magnetization_a_per_m,
         &residuals,
         fitted_up_to_hz,

@@ -82,6 +82,37 @@ pub struct IdentifyOptions {
     pub substeps: Option<usize>,
 }
 
+impl Default for IdentifyOptions {
+    /// `maglab identify`'s defaults: the sign of `M` and each record's start from the data, a
+    /// 1 % zero band, smoothness 1e-8 (a Terfenol-like density is sharply peaked; a stronger
+    /// prior biases the central masses), unexcited cells kept at the base file's masses, the
+    /// reversible part decided from the data, the waveform fit on.
+    fn default() -> Self {
+        let reversible = ReversiblePart::Auto;
+        IdentifyOptions {
+            masses: MassOptions {
+                branch: None,
+                initial: None,
+                documented: None,
+                zero_band_fraction: 0.01,
+                fit: crate::fit::FitOptions {
+                    smoothness: 1e-8,
+                    unexcited: crate::fit::Unexcited::KeepPrior,
+                    reversible: reversible.first_fit(),
+                    ..crate::fit::FitOptions::default()
+                },
+                lag_correction: None,
+                current_shift_samples: 0.0,
+                reach: None,
+            },
+            reversible,
+            dynamics: DynamicOptions::default(),
+            waveform_fit: true,
+            substeps: None,
+        }
+    }
+}
+
 /// What [`identify`] found.
 #[derive(Debug, Clone)]
 pub struct Identified {
@@ -161,6 +192,7 @@ pub fn identify(
         documented: dataset.documented.clone(),
         lag_correction: Some(passes::constants_of(base.params)),
         current_shift_samples: 0.0,
+        reach: split.reach(base.params.actuator.coil_factor_per_m),
         ..options.masses.clone()
     };
     mass_options.fit.reversible = options.reversible.first_fit();

@@ -55,6 +55,14 @@ impl ReversiblePart {
             .ok_or_else(|| format!("`{text}`: expected `none`, `piecewise` or `auto`"))
     }
 
+    /// The interface name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES
+            .iter()
+            .find(|(_, r)| *r == self)
+            .map_or("?", |(n, _)| n)
+    }
+
     /// The mass fit's setting for the first identification (`auto` starts without one).
     pub fn first_fit(self) -> Reversible {
         match self {

@@ -20,9 +20,10 @@ pub struct Programme {
 /// parameters — all a bench user knows before identifying — by the core's generator
 /// (`magctl::programme`, the one the firmware plays itself in `mode=measure-local` and on the
 /// NUCLEO measurement image): the FORC sweep (reversals on every grid line, 5 % beyond the grid,
-/// clipped to the current limit by the firmware's limiter) and biased sines, each experiment
-/// preceded by the start-up conditioning sequence (negative saturation, then slowly to its first
-/// current — the start state `negative-saturation` of `dataset.json`).
+/// clipped to the current limit by the firmware's limiter; over the reach, for a file that has
+/// one) and biased sines, each experiment preceded by the start-up conditioning sequence (then
+/// slowly to its first current — the start state `negative-saturation` or `conditioned` of
+/// `dataset.json`).
 pub fn identification_programme() -> Result<Programme> {
     let programme = core_programme()?;
     let mut prog = Programme {
@@ -63,8 +64,8 @@ pub(super) fn core_programme() -> Result<magctl::programme::IdentificationProgra
     magctl::programme::IdentificationProgramme::new(
         &limiter,
         p.actuator.coil_factor_per_m,
-        measure.h_min_a_per_m(),
-        measure.h_max_a_per_m(),
+        measure,
+        p.preisach.reach_a_per_m,
         p.control.sample_rate_hz,
     )
     .map_err(|e| anyhow::anyhow!("identification programme: {e:?}"))
@@ -124,13 +125,16 @@ pub(super) fn check_record_against_link(
 
 /// Writes the dataset folder of a measurement run: one `t_s,current_a,displacement_m` file per
 /// experiment (the current the firmware applied and its reading of the tick's sample) and
-/// `dataset.json` (start state `negative-saturation`, the excitation of each file).
+/// `dataset.json` (the programme's start state, `negative-saturation` or `conditioned`, and the
+/// excitation of each file).
 pub(super) fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path) -> Result<()> {
     use maglab_dataset::dataset_info::{DatasetInfo, FileInfo, StartState};
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let rate_hz = BAKED_PARAMETERS.control.sample_rate_hz as f64;
+    let start = StartState::parse(core_programme()?.start_state_name())
+        .map_err(|e| anyhow::anyhow!("the programme's start state: {e}"))?;
     let mut info = DatasetInfo {
-        start_state: Some(StartState::NegativeSaturation),
+        start_state: Some(start),
         files: Default::default(),
     };
     for (name, description, start, len) in &programme.experiments {

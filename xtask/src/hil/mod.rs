@@ -29,10 +29,12 @@ mod bridge;
 mod checks;
 mod end_to_end;
 mod link_log;
+mod matrix;
 mod measurement;
 
 pub use checks::check;
 pub use end_to_end::end_to_end;
+pub use matrix::interrupt_matrix;
 pub use measurement::{identification_programme, Programme};
 
 use crate::frame_socket::{FrameSocket, WAKE_BOUND};
@@ -113,6 +115,9 @@ pub struct HilRun {
     pub feedback: bool,
     /// Parameter file of the default plant (default: the baked parameters).
     pub plant_params: Option<PathBuf>,
+    /// The default plant's own rod (`maglab hil-plant --rod FAMILY:FACTOR`): a Preisach measure
+    /// on the plant's grid instead of the file's.
+    pub plant_rod: Option<String>,
     /// Measurement mode: the programme to stream and where to write the dataset folder.
     pub measure: Option<(Arc<Programme>, PathBuf)>,
     /// Streamed measurement of only the programme's first ticks (no dataset written).
@@ -143,6 +148,7 @@ impl HilRun {
             conditioning: true,
             feedback: true,
             plant_params: None,
+            plant_rod: None,
             measure: None,
             measure_ticks: None,
             measure_local: None,
@@ -165,6 +171,8 @@ pub struct HilResult {
     pub summary: String,
     /// The command frames, in tick order.
     pub frames: Vec<CommandFrame>,
+    /// The tracking interrupts' instructions: min, median, max.
+    pub instructions: (f64, f64, f64),
 }
 
 /// Builds `maglab` and returns its path: as `cargo test --workspace` builds it (the `test`
@@ -218,6 +226,9 @@ fn plant_command(
             c.arg("hil-plant").arg("--log").arg(plant_log);
             if let Some(p) = &run.plant_params {
                 c.arg("--params").arg(ctx.root.join(p));
+            }
+            if let Some(rod) = &run.plant_rod {
+                c.args(["--rod", rod]);
             }
             for e in &run.effects {
                 c.args(["--effect", e]);
@@ -443,6 +454,7 @@ pub fn run_once(
         wall_s: b.wall_s,
         summary: s,
         frames: b.rows.iter().filter_map(|r| r.command).collect(),
+        instructions: instr,
     })
 }
 
@@ -592,6 +604,13 @@ pub struct Args {
     /// The default plant's parameter file (default: the baked parameters).
     #[arg(long, value_name = "FILE")]
     plant_params: Option<PathBuf>,
+    /// The default plant's own rod, `FAMILY:FACTOR[:C:S]` (`maglab hil-plant --rod`).
+    #[arg(long, value_name = "FAMILY:FACTOR")]
+    plant_rod: Option<String>,
+    /// Measure the whole control interrupt on a matrix of rods the baked model does not
+    /// describe (docs/firmware.md), and nothing else.
+    #[arg(long)]
+    interrupt_matrix: bool,
     /// Tracking ticks (the start-up conditioning adds its own).
     #[arg(long, default_value_t = 10_000, value_parser = clap::value_parser!(u32).range(1..))]
     ticks: u32,
@@ -632,6 +651,13 @@ pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
         let exe = maglab(ctx)?;
         return end_to_end(ctx, &elf, &exe, &ctx.root.join("out/hil/e2e")).map(|_| ());
     }
+    if args.interrupt_matrix {
+        let elf = firmware(ctx)?;
+        let exe = maglab(ctx)?;
+        let table = interrupt_matrix(ctx, &elf, &exe, &ctx.root.join("out/hil/matrix"))?;
+        print!("{table}");
+        return Ok(());
+    }
     if args.plant_cmd.is_some() && (!args.effects.is_empty() || args.noise_m.is_some()) {
         bail!("--effect and --noise-m configure the default plant; pass them to --plant-cmd's program instead");
     }
@@ -641,6 +667,7 @@ pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
     run.noise_m = args.noise_m;
     run.prior_history = args.prior_history;
     run.plant_params = args.plant_params.clone();
+    run.plant_rod = args.plant_rod.clone();
     run.ticks = args.ticks;
     run.inverse = args.inverse.clone();
     run.conditioning = !args.no_conditioning;
