@@ -11,7 +11,8 @@ use std::fmt::Write as _;
 /// tracking ≤ 1 % of the peak-to-peak on the true displacement, ≤ 30 s wall); the Python plant
 /// `host-tests/hil/first_order_plant.py` speaking the protocol (exit 0), also started 5 s late;
 /// conditioning vs random prior histories; measure → identify → re-bake → track
-/// ([`end_to_end`]); a NaN sample (exit 7), a
+/// ([`end_to_end`], on a rod the coil cannot saturate); the interrupt's worst case on rods the
+/// baked file does not describe (`super::matrix`, ≤ 1,500 instructions); a NaN sample (exit 7), a
 /// silent link (exit 8) and a desynchronized frame (exit 8), each ending at 0 A.
 pub fn check(ctx: &Ctx) -> Result<String> {
     let elf = firmware(ctx)?;
@@ -107,6 +108,9 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     summary.push_str(&table);
 
     summary.push_str(&end_to_end(ctx, &elf, &exe, &base.join("e2e"))?);
+    let matrix = super::matrix::interrupt_matrix(ctx, &elf, &exe, &base.join("matrix"))?;
+    print!("{matrix}");
+    summary.push_str(&matrix);
 
     // (name, fault, exit status, feedback on, the run must end at 0 A)
     for (name, inject, exit, feedback, zero) in [
