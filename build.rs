@@ -23,7 +23,10 @@ fn main() {
         _ => manifest_dir.join("params").join("actuator.json"),
     };
     println!("cargo:rerun-if-changed={}", path.display());
-    let params = match actuator_params::ActuatorParams::load(&path) {
+    let name = path.display().to_string();
+    let params = match actuator_params::ActuatorParams::load(&path)
+        .and_then(|p| p.validate_for_firmware(&name).map(|()| p))
+    {
         Ok(p) => p,
         Err(e) => {
             // `cargo:warning` makes the reason visible in the summary; the panic fails the build.

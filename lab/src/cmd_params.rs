@@ -65,6 +65,8 @@ fn write_default(output: Option<&PathBuf>) -> Result<()> {
 
 fn check(path: &Path) -> Result<()> {
     let file = ActuatorParams::load(path).context("invalid parameter file")?;
+    file.validate_for_firmware(&path.display().to_string())
+        .context("invalid parameter file for a firmware image")?;
     let core = params_io::to_core(&file)?;
     let measure = params_io::LoadedParams {
         params: core,

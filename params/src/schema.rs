@@ -371,6 +371,32 @@ impl ActuatorParams {
         text
     }
 
+    /// What a firmware image needs beyond [`ActuatorParams::validate`] (`build.rs` and
+    /// `maglab params check` run both): the rod at rest, unmagnetized at 0 A, sits at 0 m, and a
+    /// reading there (with its noise and the count it rounds to) must never be a sensor fault, or
+    /// the firmware stops at its first sample when it starts without conditioning. The host
+    /// tools, which never judge a reading against the valid range, accept a file without it (a
+    /// file written for an older default, `valid_min_m` 0.5 µm, still identifies and diagnoses).
+    pub fn validate_for_firmware(&self, source_name: &str) -> Result<(), ParamsError> {
+        let err = |field: &str, reason: String| ParamsError {
+            source_name: source_name.to_string(),
+            field: field.to_string(),
+            reason,
+        };
+        let sn = &self.sensor;
+        if sn.valid_min_m > -sn.gain_m_per_count.abs() || sn.valid_max_m <= 0.0 {
+            return Err(err(
+                "sensor.valid_min_m",
+                format!(
+                    "the rest position 0 m (the rod unmagnetized at 0 A) must lie inside the valid \
+                     range [{}, {}] m with at least one ADC count ({:.3e} m) below it to spare",
+                    sn.valid_min_m, sn.valid_max_m, sn.gain_m_per_count.abs()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Checks every constraint the core relies on (errors name `source_name`, the field and the
     /// reason).
     pub fn validate(&self, source_name: &str) -> Result<(), ParamsError> {
@@ -571,19 +597,6 @@ impl ActuatorParams {
                 format!(
                     "the valid range [{}, {}] m must lie inside what the ADC can read, [{reach_lo:.4e}, {reach_hi:.4e}] m (offset + gain x 0 ..= {full_count})",
                     sn.valid_min_m, sn.valid_max_m
-                ),
-            ));
-        }
-        // The rod at rest, unmagnetized at 0 A, sits at 0 m: a reading there (with its noise
-        // and the count it rounds to) must never be a fault, or the firmware stops at its first
-        // sample when it starts without conditioning.
-        if sn.valid_min_m > -sn.gain_m_per_count.abs() || sn.valid_max_m <= 0.0 {
-            return Err(err(
-                "sensor.valid_min_m",
-                format!(
-                    "the rest position 0 m (the rod unmagnetized at 0 A) must lie inside the valid \
-                     range [{}, {}] m with at least one ADC count ({:.3e} m) below it to spare",
-                    sn.valid_min_m, sn.valid_max_m, sn.gain_m_per_count.abs()
                 ),
             ));
         }

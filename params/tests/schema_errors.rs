@@ -200,3 +200,21 @@ fn grid_lines_are_accepted_and_reach_the_core() {
     }
     assert!(!valid_text().contains("grid_lines_a_per_m"));
 }
+
+#[test]
+fn a_valid_range_above_the_rest_position_is_refused_for_a_firmware_image_only() {
+    // The older default (valid from 0.5 µm): the rod at rest (0 m) would read as a sensor fault.
+    let mut doc: serde_json::Value = serde_json::from_str(&valid_text()).expect("json");
+    doc["sensor"]["valid_min_m"] = serde_json::json!(0.5e-6);
+    doc["trajectory"]["displacement_min_m"] = serde_json::json!(1e-5);
+    let params = ActuatorParams::parse(&doc.to_string(), "older.json")
+        .expect("the host tools accept it: they never judge a reading against the range");
+    let err = params
+        .validate_for_firmware("older.json")
+        .expect_err("a firmware image must not fault at rest");
+    assert_eq!(err.field, "sensor.valid_min_m", "{err}");
+    assert!(err.reason.contains("rest position"), "{err}");
+    ActuatorParams::parse(&valid_text(), "default")
+        .and_then(|p| p.validate_for_firmware("default"))
+        .expect("the default file is fit for a firmware image");
+}
