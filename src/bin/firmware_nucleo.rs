@@ -11,9 +11,12 @@
 //! run, cycles per interrupt (DWT cycle counter, min / max), overruns, limiter and fault
 //! counters, SPI timeouts, staircase merges.
 //!
-//! Start-up (`docs/safety.md`): the DAC powers up at 0 A; the first thing `main` does after the
-//! clocks is write 0 A again (a reset does not reset the DAC), then it ramps to the controller's
-//! initial current at the slew limit, starts the watchdog and hands the state to the interrupt.
+//! Start-up (`docs/safety.md`): the DAC powers up at 0 A; the first thing `main` does is write 0 A
+//! again on the reset clock (a reset does not reset the DAC), then it starts the watchdog with
+//! its start-up timeout (2.8–7.7 s), brings up the clocks with every wait bounded (the internal
+//! oscillator when the HSE does not come up; a PLL that does not lock halts at 0 A), ramps to the
+//! controller's initial current at the slew limit, shortens the watchdog to its run timeout and
+//! hands the state to the interrupt.
 //!
 //! **Measurement image** (feature `measurement-mode`, `cargo xtask nucleo` builds it as
 //! `out/nucleo/firmware-nucleo-measure.elf`): instead of tracking, the interrupt plays the
@@ -229,11 +232,9 @@ mod firmware {
         else {
             halt("peripherals already taken")
         };
-        clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH);
-        cp.DCB.enable_trace();
-        cp.DWT.enable_cycle_counter();
         let p = &BAKED_PARAMETERS;
-        // 0 A before anything else: the DAC keeps its code through an MCU reset.
+        // 0 A before anything else, on the reset clock (the DAC keeps its code through an MCU
+        // reset, a watchdog reset included); SPI1 just runs slower until the PLL is up.
         let Some(scale) = DacScale::new(p.control.current_limit_a) else {
             halt("invalid control.current_limit_a")
         };
@@ -243,8 +244,25 @@ mod firmware {
         if dac.write_current(0.0).is_err() {
             halt("the DAC cannot be written (SPI timeout)");
         }
-        if watchdog::take_reset_was_watchdog(&dp.RCC) {
+        // Then the watchdog, with its start-up timeout, before anything that can stall.
+        let reset_by_watchdog = watchdog::take_reset_was_watchdog(&dp.RCC);
+        let (watchdog, boot_configured) = Watchdog::start_for_boot(&dp.DBGMCU);
+        match clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH, || watchdog.feed()) {
+            Ok(clocks::ClockSource::Hse) => {}
+            Ok(clocks::ClockSource::Hsi) => defmt::warn!(
+                "the 8 MHz HSE did not come up: running from the internal HSI (control rate within its 1 %)"
+            ),
+            Err(e) => halt(e.describe()),
+        }
+        cp.DCB.enable_trace();
+        cp.DWT.enable_cycle_counter();
+        if reset_by_watchdog {
             defmt::warn!("reset by the independent watchdog: the control loop had stalled");
+        }
+        if !boot_configured {
+            defmt::warn!(
+                "watchdog start-up timeout not applied: running with its 512 ms reset timeout"
+            );
         }
 
         defmt::info!(
@@ -303,17 +321,16 @@ mod firmware {
             }
             let start = DWT::cycle_count();
             while DWT::cycle_count().wrapping_sub(start) < period_cycles {}
+            watchdog.feed();
         }
 
         let Some(timer) = ControlTimer::new(&dp.RCC, rate_hz) else {
             halt("TIM2 cannot run at the control rate (must divide 90 MHz)")
         };
         let adc = DisplacementAdc::new(&dp.RCC);
-        let (watchdog, configured) = Watchdog::start(&dp.DBGMCU);
-        if !configured {
-            defmt::warn!(
-                "watchdog prescaler/reload not applied: running with its 512 ms reset timeout"
-            );
+        // The control interrupt feeds it from here on: the run timeout.
+        if !watchdog.set_run_timeout() {
+            defmt::warn!("watchdog run timeout not applied: the start-up timeout stays");
         }
         let app = App {
             control,

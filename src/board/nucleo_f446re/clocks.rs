@@ -5,9 +5,15 @@
 //! PLL: `f_VCO = HSE / M · N = 8 MHz / 4 · 180 = 360 MHz` (VCO input 2 MHz, output within
 //! 100..432 MHz), `SYSCLK = f_VCO / P = 360 / 2`; Q = 8 and R = 2 are unused outputs kept in range.
 //!
-//! Register-level (PAC pointers, raw bit values named below): nothing here can panic. The waits
-//! for the ready flags spin until the hardware sets them (a missing HSE input hangs here, before
-//! the control interrupt is enabled, with the DAC never written).
+//! **No wait without a bound.** Every ready flag is polled at most [`READY_POLLS`] times (at the
+//! 16 MHz reset clock, a poll is under 1 µs: ≤ 0.1 s, far inside the start-up watchdog's 2.8 s).
+//! When the 8 MHz bypass clock does not come up (no ST-LINK MCO, a broken jumper) the PLL runs
+//! from the internal 16 MHz HSI with `M = 8` — the same 2 MHz VCO input and the same clocks, at
+//! the HSI's ±1 % accuracy instead of the crystal's — and [`init`] says so
+//! ([`ClockSource::Hsi`]); the caller warns. A PLL that does not lock, or an over-drive,
+//! flash-latency or clock switch that does not complete, is an error: the caller halts (the DAC
+//! has been written 0 A before and the watchdog runs). Register-level (PAC pointers, raw bit
+//! values named below): nothing here can panic.
 
 use stm32f4::stm32f446 as pac;
 
@@ -17,6 +23,8 @@ const RCC_CR_HSEBYP: u32 = 1 << 18;
 const RCC_CR_PLLON: u32 = 1 << 24;
 const RCC_CR_PLLRDY: u32 = 1 << 25;
 const PLL_M: u32 = 4;
+/// M for the 16 MHz HSI: the same 2 MHz VCO input.
+const PLL_M_HSI: u32 = 8;
 const PLL_N: u32 = 180;
 /// P = 2 is encoded as 0.
 const PLL_P_BITS: u32 = 0;
@@ -47,12 +55,68 @@ pub const PCLK2_HZ: u32 = SYSCLK_HZ / 2;
 /// Clock of the APB1 timers (TIM2): twice PCLK1 because the APB1 prescaler is not 1.
 pub const TIM2_CLOCK_HZ: u32 = 2 * PCLK1_HZ;
 
-fn spin_until(done: impl Fn() -> bool) {
-    while !done() {}
+/// Polls of a ready flag before giving up (module docs).
+pub const READY_POLLS: u32 = 100_000;
+
+/// What the PLL runs from after [`init`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ClockSource {
+    /// The 8 MHz bypass clock (the ST-LINK's MCO).
+    Hse,
+    /// The internal 16 MHz oscillator: the HSE did not come up within [`READY_POLLS`] polls.
+    Hsi,
 }
 
-/// Switches the system to the 180 MHz PLL clock. Call once, first thing in `main`.
-pub fn init(rcc: &pac::RCC, pwr: &pac::PWR, flash: &pac::FLASH) {
+/// A start-up step of the clock tree that did not complete within [`READY_POLLS`] polls.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ClockError {
+    /// The PLL did not lock.
+    PllLock,
+    /// The over-drive did not become ready.
+    OverDrive,
+    /// The switch to over-drive did not complete.
+    OverDriveSwitch,
+    /// The flash did not take its 5 wait states.
+    FlashLatency,
+    /// The system clock did not switch to the PLL.
+    SystemSwitch,
+}
+
+impl ClockError {
+    /// A description for the log.
+    pub fn describe(self) -> &'static str {
+        match self {
+            ClockError::PllLock => "the PLL did not lock",
+            ClockError::OverDrive => "the over-drive did not become ready",
+            ClockError::OverDriveSwitch => "the switch to over-drive did not complete",
+            ClockError::FlashLatency => "the flash did not take its wait states",
+            ClockError::SystemSwitch => "the system clock did not switch to the PLL",
+        }
+    }
+}
+
+/// Polls `done` at most [`READY_POLLS`] times, calling `feed` (the watchdog) at each; whether it
+/// became true.
+fn spin_until(feed: &mut impl FnMut(), done: impl Fn() -> bool) -> bool {
+    for _ in 0..READY_POLLS {
+        if done() {
+            return true;
+        }
+        feed();
+    }
+    done()
+}
+
+/// Switches the system to the 180 MHz PLL clock, from the HSE or, when it does not come up, the
+/// HSI (module docs); `feed` is called while waiting (the start-up watchdog). Call once, after
+/// the DAC's 0 A and the watchdog's start.
+pub fn init(
+    rcc: &pac::RCC,
+    pwr: &pac::PWR,
+    flash: &pac::FLASH,
+    mut feed: impl FnMut(),
+) -> Result<ClockSource, ClockError> {
+    let feed = &mut feed;
     // SAFETY (all `bits` writes): values from RM0390 for these registers, documented above.
     rcc.apb1enr()
         .modify(|r, w| unsafe { w.bits(r.bits() | APB1ENR_PWREN) });
@@ -60,30 +124,47 @@ pub fn init(rcc: &pac::RCC, pwr: &pac::PWR, flash: &pac::FLASH) {
         .modify(|r, w| unsafe { w.bits(r.bits() | PWR_CR_VOS_SCALE1) });
     rcc.cr()
         .modify(|r, w| unsafe { w.bits(r.bits() | RCC_CR_HSEBYP | RCC_CR_HSEON) });
-    spin_until(|| rcc.cr().read().bits() & RCC_CR_HSERDY != 0);
+    let source = if spin_until(feed, || rcc.cr().read().bits() & RCC_CR_HSERDY != 0) {
+        ClockSource::Hse
+    } else {
+        // The HSI has run since reset (HSION, HSIRDY are reset values).
+        rcc.cr()
+            .modify(|r, w| unsafe { w.bits(r.bits() & !(RCC_CR_HSEON | RCC_CR_HSEBYP)) });
+        ClockSource::Hsi
+    };
+    let (m, src) = match source {
+        ClockSource::Hse => (PLL_M, PLLCFGR_SRC_HSE),
+        ClockSource::Hsi => (PLL_M_HSI, 0),
+    };
     rcc.pllcfgr().write(|w| unsafe {
-        w.bits(
-            PLL_M
-                | (PLL_N << 6)
-                | (PLL_P_BITS << 16)
-                | PLLCFGR_SRC_HSE
-                | (PLL_Q << 24)
-                | (PLL_R << 28),
-        )
+        w.bits(m | (PLL_N << 6) | (PLL_P_BITS << 16) | src | (PLL_Q << 24) | (PLL_R << 28))
     });
     rcc.cr()
         .modify(|r, w| unsafe { w.bits(r.bits() | RCC_CR_PLLON) });
-    spin_until(|| rcc.cr().read().bits() & RCC_CR_PLLRDY != 0);
+    if !spin_until(feed, || rcc.cr().read().bits() & RCC_CR_PLLRDY != 0) {
+        return Err(ClockError::PllLock);
+    }
     // Over-drive for 180 MHz (RM0390 §5.1.4: after PLL on, before the switch).
     pwr.cr()
         .modify(|r, w| unsafe { w.bits(r.bits() | PWR_CR_ODEN) });
-    spin_until(|| pwr.csr().read().bits() & PWR_CSR_ODRDY != 0);
+    if !spin_until(feed, || pwr.csr().read().bits() & PWR_CSR_ODRDY != 0) {
+        return Err(ClockError::OverDrive);
+    }
     pwr.cr()
         .modify(|r, w| unsafe { w.bits(r.bits() | PWR_CR_ODSWEN) });
-    spin_until(|| pwr.csr().read().bits() & PWR_CSR_ODSWRDY != 0);
+    if !spin_until(feed, || pwr.csr().read().bits() & PWR_CSR_ODSWRDY != 0) {
+        return Err(ClockError::OverDriveSwitch);
+    }
     flash.acr().write(|w| unsafe { w.bits(FLASH_ACR) });
-    spin_until(|| flash.acr().read().bits() & 0xF == FLASH_ACR & 0xF);
+    if !spin_until(feed, || flash.acr().read().bits() & 0xF == FLASH_ACR & 0xF) {
+        return Err(ClockError::FlashLatency);
+    }
     rcc.cfgr()
         .write(|w| unsafe { w.bits(CFGR_PPRE1_DIV4 | CFGR_PPRE2_DIV2 | CFGR_SW_PLL) });
-    spin_until(|| rcc.cfgr().read().bits() & CFGR_SWS_MASK == CFGR_SWS_PLL);
+    if !spin_until(feed, || {
+        rcc.cfgr().read().bits() & CFGR_SWS_MASK == CFGR_SWS_PLL
+    }) {
+        return Err(ClockError::SystemSwitch);
+    }
+    Ok(source)
 }

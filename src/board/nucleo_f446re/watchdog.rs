@@ -23,6 +23,15 @@ const KEY_FEED: u16 = 0xAAAA;
 const KEY_START: u16 = 0xCCCC;
 /// Prescaler code 0: LSI / 4.
 const PR_DIV4: u16 = 0;
+/// Prescaler code 3: LSI / 32 (the start-up timeout).
+const PR_DIV32: u16 = 3;
+/// Reload value of the start-up timeout (the largest).
+const BOOT_RELOAD: u16 = 4095;
+/// Shortest start-up timeout, ms: 4096 × 32 / 47 kHz = 2.8 s (the start-up's bounded waits take
+/// well under this: the HSE wait is bounded by `clocks::HSE_READY_POLLS`).
+pub const BOOT_TIMEOUT_MIN_MS: f32 = (BOOT_RELOAD as f32 + 1.0) * 32.0 / 47.0;
+/// Longest start-up timeout, ms: 4096 × 32 / 17 kHz = 7.7 s.
+pub const BOOT_TIMEOUT_MAX_MS: f32 = (BOOT_RELOAD as f32 + 1.0) * 32.0 / 17.0;
 /// Reload value: the counter runs down from here.
 pub const RELOAD: u16 = 63;
 /// Shortest timeout (fastest LSI, 47 kHz), ms: (63 + 1) × 4 / 47 kHz = 5.4 ms.
@@ -58,10 +67,13 @@ pub fn take_reset_was_watchdog(rcc: &pac::RCC) -> bool {
 unsafe impl Send for Watchdog {}
 
 impl Watchdog {
-    /// Starts the IWDG with the timeout above and freezes it under a debugger halt. The flag is
-    /// false if the prescaler/reload update did not complete in time (the watchdog then runs
-    /// with its reset values, a 512 ms timeout, and is fed the same way; the caller logs it).
-    pub fn start(dbgmcu: &pac::DBGMCU) -> (Self, bool) {
+    /// Starts the IWDG with the start-up timeout ([`BOOT_TIMEOUT_MIN_MS`]..[`BOOT_TIMEOUT_MAX_MS`])
+    /// and freezes it under a debugger halt: the first thing after the DAC's 0 A, so that every
+    /// later start-up step (the clocks' bounded waits, the controller's set-up, the ramp) runs
+    /// under it and a stall resets the chip, which writes 0 A again. The flag is false if the
+    /// prescaler/reload update did not complete in time (the watchdog then runs with its reset
+    /// values, a 512 ms timeout, and is fed the same way; the caller logs it).
+    pub fn start_for_boot(dbgmcu: &pac::DBGMCU) -> (Self, bool) {
         // SAFETY: fixed peripheral address; only this handle writes the IWDG.
         let regs: &'static pac::iwdg::RegisterBlock = unsafe { &*pac::IWDG::ptr() };
         // SAFETY (all `bits` writes): key and field values from RM0390 §20.4.
@@ -69,19 +81,33 @@ impl Watchdog {
             .apb1_fz()
             .modify(|r, w| unsafe { w.bits(r.bits() | DBG_IWDG_STOP) });
         regs.kr().write(|w| unsafe { w.bits(KEY_START) });
-        regs.kr().write(|w| unsafe { w.bits(KEY_UNLOCK) });
-        regs.pr().write(|w| unsafe { w.bits(PR_DIV4) });
-        regs.rlr().write(|w| unsafe { w.bits(RELOAD) });
+        let dog = Watchdog { regs };
+        let configured = dog.configure(PR_DIV32, BOOT_RELOAD);
+        (dog, configured)
+    }
+
+    /// Shortens the timeout to the control loop's ([`TIMEOUT_MIN_MS`]..[`TIMEOUT_MAX_MS`]): call
+    /// last before the control interrupt takes over the feeding. False if the update did not
+    /// complete in time (the start-up timeout then stays; the caller logs it).
+    pub fn set_run_timeout(&self) -> bool {
+        self.configure(PR_DIV4, RELOAD)
+    }
+
+    /// Writes the prescaler and reload (unlocked), waits a bounded time for the update, feeds.
+    fn configure(&self, prescaler: u16, reload: u16) -> bool {
+        // SAFETY (all `bits` writes): key and field values from RM0390 §20.4.
+        self.regs.kr().write(|w| unsafe { w.bits(KEY_UNLOCK) });
+        self.regs.pr().write(|w| unsafe { w.bits(prescaler) });
+        self.regs.rlr().write(|w| unsafe { w.bits(reload) });
         let mut configured = false;
         for _ in 0..SR_POLL_LIMIT {
-            if regs.sr().read().bits() & SR_PVU_RVU == 0 {
+            if self.regs.sr().read().bits() & SR_PVU_RVU == 0 {
                 configured = true;
                 break;
             }
         }
-        let dog = Watchdog { regs };
-        dog.feed();
-        (dog, configured)
+        self.feed();
+        configured
     }
 
     /// Reloads the counter (one register write).
