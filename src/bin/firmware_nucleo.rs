@@ -219,19 +219,10 @@ mod firmware {
         magctl::record::log::batches(drain, flush, || rtt::free_bytes() >= FRAME_BYTES_MAX);
     }
 
-    fn halt(reason: &str) -> ! {
-        defmt::error!("start-up failed: {=str}", reason);
-        loop {
-            cortex_m::asm::bkpt();
-        }
-    }
-
-    #[cortex_m_rt::entry]
-    fn main() -> ! {
-        let (Some(mut cp), Some(dp)) = (cortex_m::Peripherals::take(), pac::Peripherals::take())
-        else {
-            halt("peripherals already taken")
-        };
+    /// Start-up steps 1–3 of `docs/safety.md`: 0 A to the DAC on the reset clock, the watchdog
+    /// with its start-up timeout, the clocks with every wait bounded. Halts (0 A written) on a
+    /// failure.
+    fn start_safely(cp: &mut cortex_m::Peripherals, dp: &pac::Peripherals) -> (Dac, Watchdog) {
         let p = &BAKED_PARAMETERS;
         // 0 A before anything else, on the reset clock (the DAC keeps its code through an MCU
         // reset, a watchdog reset included); SPI1 just runs slower until the PLL is up.
@@ -264,6 +255,24 @@ mod firmware {
                 "watchdog start-up timeout not applied: running with its 512 ms reset timeout"
             );
         }
+        (dac, watchdog)
+    }
+
+    fn halt(reason: &str) -> ! {
+        defmt::error!("start-up failed: {=str}", reason);
+        loop {
+            cortex_m::asm::bkpt();
+        }
+    }
+
+    #[cortex_m_rt::entry]
+    fn main() -> ! {
+        let (Some(mut cp), Some(dp)) = (cortex_m::Peripherals::take(), pac::Peripherals::take())
+        else {
+            halt("peripherals already taken")
+        };
+        let p = &BAKED_PARAMETERS;
+        let (mut dac, watchdog) = start_safely(&mut cp, &dp);
 
         defmt::info!(
             "magctl firmware on NUCLEO-F446RE: {=u32} Hz core, control rate {=f32} Hz, Van der Pol mu {=f32}, {=f32} Hz scale",
