@@ -360,6 +360,8 @@ mod firmware {
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
+        // First: the stack's high-water mark is measured against this paint.
+        magctl::board::stack::paint();
         let Some(mut cp) = cortex_m::Peripherals::take() else {
             semihosting::exit(4)
         };
@@ -645,11 +647,12 @@ mod firmware {
             defmt::info!("MEAS-END {=u32} lost {=u32} sensor-faults", lost, faults);
         }
         defmt::info!(
-            "ticks {=u32}; interrupt instructions min {=u16} max {=u16}; SPI timeouts {=u32}",
+            "ticks {=u32}; interrupt instructions min {=u16} max {=u16}; SPI timeouts {=u32}; stack high-water {=u32} B",
             tick,
             min_instr,
             max_instr,
-            spi_timeouts
+            spi_timeouts,
+            magctl::board::stack::high_water_bytes() as u32
         );
         if spi_timeouts > 0 {
             check_failed = true;

@@ -553,6 +553,8 @@ mod firmware {
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
+        // First: the stack's high-water mark is measured against this paint.
+        magctl::board::stack::paint();
         let Some(mut cp) = cortex_m::Peripherals::take() else {
             semihosting::exit(4)
         };
@@ -710,6 +712,11 @@ mod firmware {
     /// overrun, faulted or timed out and at least one merge; 7 after an injected sensor fault
     /// ramped to 0 A within the slew limit; 3 otherwise.
     fn report_and_exit() -> ! {
+        defmt::info!(
+            "stack: high-water {=u32} B of the {=u32} B between the statics and the top of RAM",
+            magctl::board::stack::high_water_bytes() as u32,
+            magctl::board::stack::region_bytes() as u32
+        );
         let dropped = RING.dropped.load(Ordering::Relaxed);
         // SAFETY: TIMER0 is masked and stopped: thread mode is APP's only user now.
         let Some(app) = (unsafe { APP.get_mut() }) else {

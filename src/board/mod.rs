@@ -19,3 +19,5 @@ pub mod mps2_an386;
 #[cfg(all(target_os = "none", feature = "board-nucleo-f446re"))]
 pub mod nucleo_f446re;
 pub mod polled_spi;
+#[cfg(target_os = "none")]
+pub mod stack;

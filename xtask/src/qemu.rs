@@ -330,7 +330,8 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     let (elf_path, elf, firmware_lines, records) = run_benchmark(ctx, &out_dir, &mut summary)?;
     let (dynamic, stat) = check_instructions(&out_dir, &records, &firmware_lines, &mut summary)?;
     check_replay_and_tracking(&out_dir, &dynamic, &stat, &mut summary)?;
-    check_sizes_and_fatal_paths(&elf_path, &elf, &out_dir, &mut summary)?;
+    let stack = stack_high_water_bytes(&firmware_lines)?;
+    check_sizes_and_fatal_paths(&elf_path, &elf, stack, &out_dir, &mut summary)?;
     no_panic_proof(ctx, &out_dir, &mut summary)?;
     std::fs::write(out_dir.join("summary.txt"), &summary)?;
     Ok(summary)
@@ -622,19 +623,32 @@ fn check_replay_and_tracking(
     Ok(())
 }
 
+/// The stack high-water mark the firmware logs at the end of its run (`stack: high-water N B`).
+fn stack_high_water_bytes(firmware_lines: &[String]) -> Result<u64> {
+    firmware_lines
+        .iter()
+        .find_map(|l| {
+            let rest = l.split("stack: high-water ").nth(1)?;
+            rest.split(' ').next()?.parse().ok()
+        })
+        .context("the firmware logged no `stack: high-water N B` line")
+}
+
 /// Steps 6-7: the image's sizes and its fatal paths (before the proof builds, which replace
 /// the binary).
 fn check_sizes_and_fatal_paths(
     elf_path: &Path,
     elf: &[u8],
+    stack_bytes: u64,
     out_dir: &Path,
     summary: &mut String,
 ) -> Result<()> {
-    // 6. sizes
+    // 6. sizes: static RAM from the image, the stack measured (`magctl::board::stack`)
     let (flash, ram) = section_sizes(elf)?;
     say!(
         summary,
-        "firmware-qemu sizes: flash {flash} B, static RAM {ram} B (stack not included)"
+        "firmware-qemu sizes: flash {flash} B, RAM {} B = static {ram} B + stack high-water {stack_bytes} B (painted stack read back after the run)",
+        ram + stack_bytes
     );
 
     // 7. fatal paths (before the proof builds, which replace the binary)
