@@ -213,15 +213,20 @@ impl Plant {
         effects: &[Effect],
         sample_rate_hz: f64,
     ) -> Result<Self, String> {
-        params
-            .validate("plant parameters")
-            .map_err(|e| e.to_string())?;
+        Self::validated(params)?;
         Self::with_measure(
             params,
             PreisachGrid::from_params(params)?,
             effects,
             sample_rate_hz,
         )
+    }
+
+    /// The plant's constants must validate before its measure is built from them.
+    fn validated(params: &ActuatorParams) -> Result<(), String> {
+        params
+            .validate("plant parameters")
+            .map_err(|e| e.to_string())
     }
 
     /// A plant with the constants of `params` but the rod's own Preisach measure `grid` (a
@@ -232,9 +237,7 @@ impl Plant {
         effects: &[Effect],
         sample_rate_hz: f64,
     ) -> Result<Self, String> {
-        params
-            .validate("plant parameters")
-            .map_err(|e| e.to_string())?;
+        Self::validated(params)?;
         Self::with_measure(params, rod.grid(params)?, effects, sample_rate_hz)
     }
 
