@@ -14,7 +14,8 @@
 //!    segments at the speed of a full-range triangle at [`FORC_SWEEP_HZ`], each a whole number
 //!    of ticks so that every reversal is a sample;
 //! 1. … the **biased sines**, every frequency of [`SINE_FREQUENCIES_HZ`] at every amplitude of
-//!    [`SINE_AMPLITUDES_A`] around [`SINE_BIAS_A`], [`SINE_DURATION_S`] each.
+//!    [`SINE_AMPLITUDES_A`] around [`SINE_BIAS_A`], [`SINE_DURATION_S`] or [`SINE_MIN_PERIODS`]
+//!    periods each, whichever is longer.
 //!
 //! The same generator feeds both measurement paths: the virtual bench streams it from the host
 //! (`cargo xtask hil --measure`) and the firmware plays it itself (NUCLEO measurement image,
@@ -31,8 +32,12 @@ pub const FORC_SWEEP_HZ: f32 = 2.0;
 /// Overshoot of the FORC sweep beyond the grid at both ends, fraction of the grid's range (the
 /// memory is saturated even with a small error in `c0`; the limiter clips at ±I_max).
 pub const FORC_OVERDRIVE: f32 = 0.05;
-/// Frequencies of the sines, Hz.
-pub const SINE_FREQUENCIES_HZ: [f32; 6] = [20.0, 50.0, 100.0, 200.0, 300.0, 400.0];
+/// Frequencies of the sines, Hz. The first, below the 10 Hz split of `maglab identify`
+/// (`maglab_identify::experiments`), is quasi-static data: the minor loops the faster sines run
+/// on, measured slowly, so that the masses are fitted where the dynamic fit reads them (on a rod
+/// the coil cannot saturate the FORC sweep's reversals from the ends of the reach leave the
+/// slope `dM/dH` inside those loops weakly determined, and the eddy fit (4) reads that slope).
+pub const SINE_FREQUENCIES_HZ: [f32; 7] = [4.0, 20.0, 50.0, 100.0, 200.0, 300.0, 400.0];
 /// Amplitudes of the sines, A (every frequency at every amplitude).
 pub const SINE_AMPLITUDES_A: [f32; 3] = [0.2, 0.4, 0.6];
 /// DC bias of the sines, A. The loops span 0.2–1.4 A, 0.1–0.7 of the ±2 A limit: the strain
@@ -40,8 +45,11 @@ pub const SINE_AMPLITUDES_A: [f32; 3] = [0.2, 0.4, 0.6];
 /// saturate (plane 4× the reach) sines around 0.55 A strain it by under 6 µm, too little for the
 /// eddy lag to be resolved (R_eddy 11 % off), around 0.8 A by up to 12 µm (docs/model.md).
 pub const SINE_BIAS_A: f32 = 0.8;
-/// Duration of each sine, s.
+/// Duration of each sine, s, or [`SINE_MIN_PERIODS`] periods when longer.
 pub const SINE_DURATION_S: f32 = 0.2;
+/// Fewest periods of a sine: the first period is the transient from the conditioned state
+/// (`maglab identify` drops it), the second the periodic loop.
+pub const SINE_MIN_PERIODS: f32 = 2.0;
 /// Number of experiments: the FORC sweep and the sines.
 pub const EXPERIMENTS: usize = 1 + SINE_FREQUENCIES_HZ.len() * SINE_AMPLITUDES_A.len();
 /// Waypoints of the FORC path: bottom, top, then a reversal and the top again per grid line.
@@ -120,7 +128,8 @@ pub struct IdentificationProgramme {
     cells_per_tick: f32,
     /// Recorded ticks of the FORC sweep (computed once).
     forc_ticks: u32,
-    sine_ticks: u32,
+    /// Recorded ticks of each sine frequency.
+    sine_ticks: [u32; SINE_FREQUENCIES_HZ.len()],
     /// Phase step per tick of each sine frequency, turns × 2³² (exact wrap-around: the phase
     /// error after `n` ticks is at most `n·2⁻³³` turn).
     sine_step_q32: [u32; SINE_FREQUENCIES_HZ.len()],
@@ -231,7 +240,14 @@ impl IdentificationProgramme {
             coil_factor_per_m,
             cells_per_tick,
             forc_ticks: 0,
-            sine_ticks: libm::roundf(SINE_DURATION_S * sample_rate_hz) as u32,
+            sine_ticks: SINE_FREQUENCIES_HZ.map(|f| {
+                let duration_s = if SINE_MIN_PERIODS / f > SINE_DURATION_S {
+                    SINE_MIN_PERIODS / f
+                } else {
+                    SINE_DURATION_S
+                };
+                libm::roundf(duration_s * sample_rate_hz) as u32
+            }),
             sine_step_q32: SINE_FREQUENCIES_HZ.map(|f| {
                 // Once, at start-up: f64 for the 32-bit step (soft float on the M4F).
                 let turns = f as f64 / sample_rate_hz as f64;
@@ -268,7 +284,8 @@ impl IdentificationProgramme {
             });
         }
         let j = k - 1;
-        let f = *SINE_FREQUENCIES_HZ.get(j / SINE_AMPLITUDES_A.len())?;
+        let i = j / SINE_AMPLITUDES_A.len();
+        let f = *SINE_FREQUENCIES_HZ.get(i)?;
         let a = *SINE_AMPLITUDES_A.get(j % SINE_AMPLITUDES_A.len())?;
         Some(Experiment {
             kind: ExperimentKind::Sine {
@@ -276,7 +293,7 @@ impl IdentificationProgramme {
                 amplitude_a: a,
                 bias_a: SINE_BIAS_A,
             },
-            ticks: self.sine_ticks,
+            ticks: *self.sine_ticks.get(i)?,
         })
     }
 
