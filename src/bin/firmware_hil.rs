@@ -81,9 +81,9 @@ mod firmware {
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
     use magctl::board::command_line::{ArgError, CommandLine};
     use magctl::board::handoff::HandOff;
-    use magctl::board::mps2_an386::semihosting;
     use magctl::board::mps2_an386::uart::{CmsdkUart, UART0_BASE};
     use magctl::board::mps2_an386::{take_dac, Dac, Timer0Irq};
+    use magctl::board::semihosting;
     use magctl::inverse::{
         CommandFlags, Conditioning, ConditioningState, ControlLoop, InverseKind, LoopState,
     };

@@ -29,6 +29,17 @@
 //! lost and the programme ends at 0 A (`MEAS-END` reports it; the recorder refuses an
 //! incomplete record). After the programme the coil ramps to 0 A and stays there.
 //!
+//! **Emulator build** (feature `emulator-netduinoplus2`, `cargo xtask hil --board nucleo`): the
+//! same image for QEMU's `netduinoplus2` (STM32F405: the same TIM2, SPI1 and USART2). The sensor
+//! sample comes from the virtual bench's plant link on USART2
+//! (`magctl::board::nucleo_f446re::emulator`) instead of ADC1, each tick's command goes back on
+//! it, the logs and the exit status (`docs/hil.md`) go over semihosting, and the clock flags the
+//! emulator does not model are taken as set (`clocks=board` on the command line polls them as
+//! on the chip: the PLL then never locks and the start-up halts at 0 A, exit 9). `ticks=N` sets
+//! the tracking ticks (default one second). Everything else — the start-up order, the watchdog's
+//! register writes, TIM2 and its flag, the SPI1 DAC frames, the fault paths — is the board's
+//! code (docs/firmware.md lists what the emulator bypasses).
+//!
 //! Flash and run with probe-rs (`probe-rs run --chip STM32F446RETx <elf>`, docs/firmware.md); the
 //! fatal paths (panic, HardFault, unexpected interrupt) command 0 A and halt at a breakpoint
 //! (`magctl::board::nucleo_f446re::fatal`).
@@ -44,18 +55,29 @@ fn main() {
     std::process::exit(2);
 }
 
+#[cfg(all(feature = "emulator-netduinoplus2", feature = "measurement-mode"))]
+compile_error!("the emulator build runs the tracking image only");
+
 #[cfg(target_os = "none")]
 mod firmware {
     use core::sync::atomic::{AtomicU32, Ordering};
     use cortex_m::peripheral::DWT;
     use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
     use magctl::board::handoff::HandOff;
+    #[cfg(not(feature = "emulator-netduinoplus2"))]
     use magctl::board::nucleo_f446re::adc::DisplacementAdc;
+    #[cfg(feature = "emulator-netduinoplus2")]
+    use magctl::board::nucleo_f446re::emulator::PlantLink;
+    use magctl::board::nucleo_f446re::fatal;
+    #[cfg(feature = "measurement-mode")]
+    use magctl::board::nucleo_f446re::rtt;
     use magctl::board::nucleo_f446re::spi::{ChipSelect, Spi1};
     use magctl::board::nucleo_f446re::timer::ControlTimer;
     use magctl::board::nucleo_f446re::watchdog::{self, Watchdog};
-    use magctl::board::nucleo_f446re::{clocks, rtt, spi};
+    use magctl::board::nucleo_f446re::{clocks, log_bytes_dropped, spi};
     use magctl::inverse::{CommandFlags, ControlLoop, InverseKind, LoopState};
+    #[cfg(not(feature = "measurement-mode"))]
+    use magctl::inverse::{Conditioning, ConditioningState};
     use magctl::output::{CurrentOutput, DacScale, SpiDac};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
     #[cfg(feature = "measurement-mode")]
@@ -72,8 +94,11 @@ mod firmware {
     /// watchdog (1 ms at 10 kHz): a DAC that cannot be written leaves the coil at its last
     /// current, so the chip resets into the 0 A start-up instead.
     const DAC_TIMEOUTS_BEFORE_RESET: u32 = 10;
-    /// Bound on the start-up ramp's steps (0.1 s at 10 kHz).
-    const MAX_RAMP_STEPS: u32 = 1_000;
+    /// Exit status of a start-up halt under the emulator, by cause (`docs/hil.md`).
+    const EXIT_ARGUMENTS: u32 = 4;
+    const EXIT_PARAMETERS: u32 = 5;
+    const EXIT_DAC: u32 = 6;
+    const EXIT_CLOCKS: u32 = 9;
 
     type Dac = SpiDac<ExclusiveDevice<Spi1, ChipSelect, NoDelay>>;
 
@@ -82,9 +107,15 @@ mod firmware {
         state: LoopState<CAPACITY>,
         dac: Dac,
         timer: ControlTimer,
+        #[cfg(not(feature = "emulator-netduinoplus2"))]
         adc: DisplacementAdc,
         watchdog: Watchdog,
         consecutive_dac_timeouts: u32,
+        /// Tracking image: the start-up conditioning (`magctl::inverse::Conditioning`: from
+        /// 0 A at the slew limit to saturation or through the reach, then to the controller's
+        /// first current), run by the interrupt before the first tracking tick.
+        #[cfg(not(feature = "measurement-mode"))]
+        conditioning: (Conditioning, ConditioningState),
         /// Measurement image: the programme being played and the record's producer.
         #[cfg(feature = "measurement-mode")]
         recorder: Recorder<'static>,
@@ -150,13 +181,24 @@ mod firmware {
         // latches the sensor fault and the command ramps to 0 A; a bad one (out of range,
         // stuck) makes the loop fall back to the feedforward alone (feedback on) or ramps to 0 A
         // (feedback off).
+        #[cfg(all(
+            not(feature = "measurement-mode"),
+            not(feature = "emulator-netduinoplus2")
+        ))]
+        let sample = app
+            .adc
+            .sample()
+            .and_then(|count| app.control.sensor().displacement_m(count));
+        #[cfg(feature = "emulator-netduinoplus2")]
+        let sample = bench::take_sample(&app.control);
         #[cfg(not(feature = "measurement-mode"))]
         let out = {
-            let sample = app
-                .adc
-                .sample()
-                .and_then(|count| app.control.sensor().displacement_m(count));
-            app.control.tick_sensed(INVERSE, &mut app.state, sample)
+            let (c, seq) = &mut app.conditioning;
+            if seq.done() {
+                app.control.tick_sensed(INVERSE, &mut app.state, sample)
+            } else {
+                app.control.condition_sensed(c, seq, &mut app.state, sample)
+            }
         };
         // Measurement image: the programme's current; the reading is checked only against the
         // ADC's range (identification drives the rod over its whole stroke).
@@ -182,6 +224,8 @@ mod firmware {
             app.watchdog.feed();
         }
         MERGES.store(app.state.merges(), Ordering::Relaxed);
+        #[cfg(feature = "emulator-netduinoplus2")]
+        bench::put_command(&out);
         #[cfg(feature = "panic-never-canary")]
         {
             // Negative control of the link-time proof: a bounds check the optimizer cannot remove.
@@ -219,31 +263,220 @@ mod firmware {
         magctl::record::log::batches(drain, flush, || rtt::free_bytes() >= FRAME_BYTES_MAX);
     }
 
+    /// The emulator build's bench: thread mode runs the lock-step link (the plant's sample, the
+    /// TIM2 interrupt pended on it, the command back) and ends the run.
+    ///
+    /// Why TIM2 is pended rather than left to expire: QEMU 7.2's STM32 timer model schedules each
+    /// update at `now` plus an absolute time (`hw/timer/stm32f2xx_timer.c`), so its periods
+    /// grow with the virtual clock until the alarm overflows and stalls the emulator. The
+    /// emulator build therefore stops the counter and pends the TIM2 interrupt when the plant's
+    /// sample has arrived, as the `mps2-an386` bench pends TIMER0; the handler and its flag
+    /// handling are the board's.
+    #[cfg(feature = "emulator-netduinoplus2")]
+    mod bench {
+        use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering};
+        use magctl::board::nucleo_f446re::emulator::PlantLink;
+        use magctl::inverse::{CommandFlags, ControlLoop, TickOutput};
+        use magctl::link::{
+            CommandFrame, EndAck, Sample, KIND_BEGIN, KIND_COMMAND, KIND_END, KIND_SAMPLE_COUNT,
+            KIND_SAMPLE_METRES,
+        };
+        use magctl::sensor::SensorFault;
+        use stm32f4::stm32f446::{Interrupt, NVIC};
+
+        /// Exit status: a sensor fault was latched and handled (`docs/hil.md`).
+        const EXIT_SENSOR_FAULT: u32 = 7;
+        /// Exit status: a link fault was handled (the coil ramped to 0 A on the firmware's own
+        /// ticks).
+        const EXIT_LINK_FAULT: u32 = 8;
+        /// Exit status: a self-check failed (the interrupt did not run, an SPI timeout, no 0 A
+        /// after a fault's ramp).
+        const EXIT_CHECK_FAILED: u32 = 3;
+
+        /// The sample of the coming tick (thread mode → interrupt): kind byte (0 = missing) and
+        /// payload bits.
+        static SAMPLE_KIND: AtomicU8 = AtomicU8::new(0);
+        static SAMPLE_BITS: AtomicU32 = AtomicU32::new(0);
+        /// The command of the last tick (interrupt → thread mode).
+        static OUT_CURRENT_BITS: AtomicU32 = AtomicU32::new(0);
+        static OUT_DESIRED_BITS: AtomicU32 = AtomicU32::new(0);
+        static OUT_FLAGS: AtomicU8 = AtomicU8::new(0);
+        static OUT_READY: AtomicBool = AtomicBool::new(false);
+
+        /// The interrupt's side: the tick's sample, scaled and checked.
+        #[inline(always)]
+        pub fn take_sample(control: &ControlLoop<'static>) -> Result<f32, SensorFault> {
+            let bits = SAMPLE_BITS.load(Ordering::Relaxed);
+            let sensor = control.sensor();
+            match SAMPLE_KIND.load(Ordering::Acquire) {
+                KIND_SAMPLE_COUNT => sensor.displacement_m(bits),
+                KIND_SAMPLE_METRES => sensor.check_m(f32::from_bits(bits)),
+                _ => Err(SensorFault::Missing),
+            }
+        }
+
+        /// The interrupt's side: the tick's command, for the link.
+        #[inline(always)]
+        pub fn put_command(out: &TickOutput) {
+            OUT_CURRENT_BITS.store(out.current_a.to_bits(), Ordering::Relaxed);
+            OUT_DESIRED_BITS.store(out.desired.displacement_m.to_bits(), Ordering::Relaxed);
+            OUT_FLAGS.store(out.flags.0, Ordering::Relaxed);
+            OUT_READY.store(true, Ordering::Release);
+        }
+
+        /// Pends the control interrupt on `sample` and returns its command frame for `tick`
+        /// (`None` if the interrupt did not run).
+        fn run_tick(sample: Option<Sample>, tick: u32) -> Option<CommandFrame> {
+            let (kind, bits) = match sample {
+                Some(Sample::Count(c)) => (KIND_SAMPLE_COUNT, c),
+                Some(Sample::Metres(m)) => (KIND_SAMPLE_METRES, m.to_bits()),
+                None => (0, 0),
+            };
+            SAMPLE_BITS.store(bits, Ordering::Relaxed);
+            SAMPLE_KIND.store(kind, Ordering::Release);
+            OUT_READY.store(false, Ordering::Relaxed);
+            NVIC::pend(Interrupt::TIM2);
+            // The pended interrupt preempts thread mode at once; the barriers make sure it ran.
+            cortex_m::asm::dsb();
+            cortex_m::asm::isb();
+            OUT_READY.load(Ordering::Acquire).then(|| CommandFrame {
+                kind: KIND_COMMAND,
+                seq: tick as u16,
+                value: f32::from_bits(OUT_CURRENT_BITS.load(Ordering::Relaxed)),
+                desired_m: f32::from_bits(OUT_DESIRED_BITS.load(Ordering::Relaxed)),
+                flags: OUT_FLAGS.load(Ordering::Relaxed),
+                aux: 0,
+                aux32: 0,
+            })
+        }
+
+        /// The lock-step run: `B`, then per tick the plant's sample, the interrupt, the command
+        /// back, for `ticks` ticks; after a link fault the firmware ticks on alone (at most
+        /// `ramp_ticks`) until the coil is at 0 A. Returns the ticks run and the exit status
+        /// before the SPI check (`docs/hil.md`).
+        pub fn lock_step(
+            link: &mut PlantLink,
+            rate_hz: f32,
+            ticks: u32,
+            ramp_ticks: u32,
+        ) -> (u32, u32) {
+            link.send_command(&CommandFrame {
+                kind: KIND_BEGIN,
+                seq: 0,
+                value: rate_hz,
+                desired_m: 0.0,
+                flags: 0,
+                aux: 0,
+                aux32: ticks,
+            });
+            let mut link_fault_at: Option<u32> = None;
+            let mut sensor_faulted = false;
+            let mut tick = 0u32;
+            loop {
+                let sample = link.sample();
+                if sample.is_none() && link_fault_at.is_none() {
+                    link_fault_at = Some(tick);
+                }
+                let Some(cmd) = run_tick(sample, tick) else {
+                    defmt::error!("the control interrupt did not run at tick {=u32}", tick);
+                    return (tick, EXIT_CHECK_FAILED);
+                };
+                sensor_faulted |= CommandFlags(cmd.flags).has(CommandFlags::SENSOR_FAULT);
+                link.send_command(&cmd);
+                tick += 1;
+                match link_fault_at {
+                    None if tick >= ticks => {
+                        let status = if sensor_faulted { EXIT_SENSOR_FAULT } else { 0 };
+                        return (tick, status);
+                    }
+                    Some(_) if cmd.value == 0.0 => return (tick, EXIT_LINK_FAULT),
+                    Some(at) if tick > at.saturating_add(ramp_ticks) => {
+                        return (tick, EXIT_CHECK_FAILED)
+                    }
+                    _ => {}
+                }
+            }
+        }
+
+        /// Sends `E` with `status`, waits (bounded) for the host's acknowledgement, exits.
+        pub fn end(link: &mut PlantLink, tick: u32, status: u32) -> ! {
+            link.send_command(&CommandFrame {
+                kind: KIND_END,
+                seq: tick as u16,
+                value: 0.0,
+                desired_m: 0.0,
+                flags: 0,
+                aux: status as u16,
+                aux32: 0,
+            });
+            let ack = EndAck {
+                seq: tick as u16,
+                status: status as u16,
+            };
+            if !link.await_end_ack(ack) {
+                defmt::warn!("the bench host did not acknowledge the end frame within its bound");
+            }
+            magctl::board::semihosting::exit(status)
+        }
+    }
+
+    /// Emulator build: `ticks=N` (tracking ticks) and `clocks=emulated|board` from the
+    /// semihosting command line; a bad word halts (exit 4).
+    #[cfg(feature = "emulator-netduinoplus2")]
+    fn emulator_arguments(rate_hz: f32) -> (u32, clocks::LockFlags) {
+        use magctl::board::command_line::CommandLine;
+        let mut buf = [0u8; 128];
+        let n = magctl::board::semihosting::command_line(&mut buf);
+        let args = CommandLine::new(buf.get(..n).unwrap_or(&[]));
+        let parsed = (|| {
+            args.check(&[b"ticks", b"clocks"])?;
+            let ticks = args.number(b"ticks")?.unwrap_or(rate_hz as u32);
+            let flags = match args.choice(b"clocks", &[b"emulated", b"board"])? {
+                Some(1) => clocks::LockFlags::Polled,
+                _ => clocks::LockFlags::AssumedSet,
+            };
+            Ok((ticks, flags))
+        })();
+        match parsed {
+            Ok(v) => v,
+            Err(e) => {
+                let e: magctl::board::command_line::ArgError<'_> = e;
+                defmt::error!("command line: cannot use `{=[u8]:a}`", e.word());
+                fatal::stop(EXIT_ARGUMENTS)
+            }
+        }
+    }
+
     /// Start-up steps 1–3 of `docs/safety.md`: 0 A to the DAC on the reset clock, the watchdog
     /// with its start-up timeout, the clocks with every wait bounded. Halts (0 A written) on a
     /// failure.
-    fn start_safely(cp: &mut cortex_m::Peripherals, dp: &pac::Peripherals) -> (Dac, Watchdog) {
+    fn start_safely(
+        cp: &mut cortex_m::Peripherals,
+        dp: &pac::Peripherals,
+        lock_flags: clocks::LockFlags,
+    ) -> (Dac, Watchdog) {
         let p = &BAKED_PARAMETERS;
         // 0 A before anything else, on the reset clock (the DAC keeps its code through an MCU
         // reset, a watchdog reset included); SPI1 just runs slower until the PLL is up.
         let Some(scale) = DacScale::new(p.control.current_limit_a) else {
-            halt("invalid control.current_limit_a")
+            halt("invalid control.current_limit_a", EXIT_PARAMETERS)
         };
         let (spi, cs) = spi::init(&dp.RCC);
         let Ok(device) = ExclusiveDevice::new_no_delay(spi, cs);
         let mut dac = SpiDac::new(device, scale);
         if dac.write_current(0.0).is_err() {
-            halt("the DAC cannot be written (SPI timeout)");
+            halt("the DAC cannot be written (SPI timeout)", EXIT_DAC);
         }
+        defmt::info!("start-up: 0 A written to the DAC on the reset clock");
         // Then the watchdog, with its start-up timeout, before anything that can stall.
         let reset_by_watchdog = watchdog::take_reset_was_watchdog(&dp.RCC);
         let (watchdog, boot_configured) = Watchdog::start_for_boot(&dp.DBGMCU);
-        match clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH, || watchdog.feed()) {
+        match clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH, lock_flags, || watchdog.feed()) {
             Ok(clocks::ClockSource::Hse) => {}
             Ok(clocks::ClockSource::Hsi) => defmt::warn!(
                 "the 8 MHz HSE did not come up: running from the internal HSI (control rate within its 1 %)"
             ),
-            Err(e) => halt(e.describe()),
+            Err(e) => halt(e.describe(), EXIT_CLOCKS),
         }
         cp.DCB.enable_trace();
         cp.DWT.enable_cycle_counter();
@@ -258,21 +491,47 @@ mod firmware {
         (dac, watchdog)
     }
 
-    fn halt(reason: &str) -> ! {
-        defmt::error!("start-up failed: {=str}", reason);
-        loop {
-            cortex_m::asm::bkpt();
-        }
+    /// A start-up failure, after the DAC's 0 A: halts for the probe (the emulator build exits
+    /// with `status`).
+    fn halt(reason: &str, status: u32) -> ! {
+        defmt::error!("start-up failed: {=str}; DAC at 0 A", reason);
+        fatal::stop(status)
+    }
+
+    /// Emulator build: runs the lock-step link until the run ends, then reports and exits with
+    /// the run's status.
+    #[cfg(feature = "emulator-netduinoplus2")]
+    fn emulated_run(mut link: PlantLink, rate_hz: f32, ticks: u32, ramp_ticks: u32) -> ! {
+        let (ran, status) = bench::lock_step(&mut link, rate_hz, ticks, ramp_ticks);
+        cortex_m::peripheral::NVIC::mask(Interrupt::TIM2);
+        let spi_timeouts = SPI_TIMEOUTS.load(Ordering::Relaxed);
+        defmt::info!(
+            "ticks {=u32}; overruns {=u32}; SPI timeouts {=u32}; sensor faults {=u32}; log bytes dropped {=u32}; stack high-water {=u32} B",
+            ran,
+            OVERRUNS.load(Ordering::Relaxed),
+            spi_timeouts,
+            SENSOR_FAULTS.load(Ordering::Relaxed),
+            log_bytes_dropped(),
+            magctl::board::stack::high_water_bytes() as u32
+        );
+        let status = if spi_timeouts > 0 { 3 } else { status };
+        bench::end(&mut link, ran, status)
     }
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
+        // First: the stack's high-water mark is measured against this paint.
+        magctl::board::stack::paint();
         let (Some(mut cp), Some(dp)) = (cortex_m::Peripherals::take(), pac::Peripherals::take())
         else {
-            halt("peripherals already taken")
+            halt("peripherals already taken", EXIT_ARGUMENTS)
         };
         let p = &BAKED_PARAMETERS;
-        let (mut dac, watchdog) = start_safely(&mut cp, &dp);
+        #[cfg(not(feature = "emulator-netduinoplus2"))]
+        let lock_flags = clocks::LockFlags::Polled;
+        #[cfg(feature = "emulator-netduinoplus2")]
+        let (tracking_ticks, lock_flags) = emulator_arguments(p.control.sample_rate_hz);
+        let (dac, watchdog) = start_safely(&mut cp, &dp, lock_flags);
 
         defmt::info!(
             "magctl firmware on NUCLEO-F446RE: {=u32} Hz core, control rate {=f32} Hz, Van der Pol mu {=f32}, {=f32} Hz scale",
@@ -283,11 +542,14 @@ mod firmware {
         );
         let control = match ControlLoop::new(&BAKED_MEASURE, p) {
             Ok(c) => c,
-            Err(_) => halt("invalid control settings in the baked parameters"),
+            Err(_) => halt(
+                "invalid control settings in the baked parameters",
+                EXIT_PARAMETERS,
+            ),
         };
         let state = control.init::<CAPACITY>(INVERSE);
         #[cfg(feature = "measurement-mode")]
-        let (recorder, mut drain) = {
+        let (recorder, drain) = {
             let Ok(programme) = magctl::programme::IdentificationProgramme::new(
                 control.limiter(),
                 p.actuator.coil_factor_per_m,
@@ -295,10 +557,13 @@ mod firmware {
                 p.preisach.reach_a_per_m,
                 p.control.sample_rate_hz,
             ) else {
-                halt("the identification programme cannot run with the baked parameters")
+                halt(
+                    "the identification programme cannot run with the baked parameters",
+                    EXIT_PARAMETERS,
+                )
             };
             let Some(queue) = cortex_m::singleton!(: RecordQueue = RecordQueue::new()) else {
-                halt("record queue taken twice")
+                halt("record queue taken twice", EXIT_ARGUMENTS)
             };
             let (producer, consumer) = queue.split();
             magctl::record::log::programme(&programme, p.control.sample_rate_hz);
@@ -315,27 +580,36 @@ mod firmware {
             state
         };
         let rate_hz = p.control.sample_rate_hz as u32;
-        // Ramp from 0 A to the controller's initial current (the static current of the first
-        // sample) at the slew limit, one step per control period (at most
-        // I_max / (slew / rate) steps: 5 with the default file).
-        let step_a = p.control.current_slew_limit_a_per_s / p.control.sample_rate_hz;
-        let period_cycles = clocks::SYSCLK_HZ / rate_hz.max(1);
-        let target_a = state.core.last_current_a;
-        // Equal steps of at most `step_a`; `as u32` saturates (NaN gives 0 steps).
-        let steps = (libm::ceilf(target_a.abs() / step_a) as u32).min(MAX_RAMP_STEPS);
-        for k in 1..=steps {
-            let current_a = target_a * (k as f32 / steps as f32);
-            if dac.write_current(current_a).is_err() {
-                halt("the DAC cannot be written (SPI timeout)");
-            }
-            let start = DWT::cycle_count();
-            while DWT::cycle_count().wrapping_sub(start) < period_cycles {}
-            watchdog.feed();
-        }
-
-        let Some(timer) = ControlTimer::new(&dp.RCC, rate_hz) else {
-            halt("TIM2 cannot run at the control rate (must divide 90 MHz)")
+        // Tracking image: the start-up conditioning runs in the interrupt, from 0 A at the slew
+        // limit to the state the controller's first memory assumes and then to its first current.
+        #[cfg(not(feature = "measurement-mode"))]
+        let conditioning = {
+            let c = *control.conditioning();
+            (c, c.start(0.0, state.core.last_current_a))
         };
+        #[cfg(feature = "emulator-netduinoplus2")]
+        let (link, ticks, ramp_ticks) = {
+            let (c, _) = conditioning;
+            let l = control.limiter();
+            let ramp_ticks = libm::ceilf(l.limit_a() / l.max_step_a()) as u32 + 2;
+            let ticks = tracking_ticks.saturating_add(c.ticks(0.0, state.core.last_current_a));
+            defmt::info!(
+                "firmware-nucleo (emulator): {=u32} ticks at {=f32} Hz, lock-step over USART2",
+                ticks,
+                p.control.sample_rate_hz
+            );
+            (PlantLink::new(&dp.RCC), ticks, ramp_ticks)
+        };
+        let Some(timer) = ControlTimer::new(&dp.RCC, rate_hz) else {
+            halt(
+                "TIM2 cannot run at the control rate (must divide 90 MHz)",
+                EXIT_PARAMETERS,
+            )
+        };
+        // Emulator build: the counter stopped, the interrupt pended per sample (`bench`).
+        #[cfg(feature = "emulator-netduinoplus2")]
+        let timer = timer.stopped();
+        #[cfg(not(feature = "emulator-netduinoplus2"))]
         let adc = DisplacementAdc::new(&dp.RCC);
         // The control interrupt feeds it from here on: the run timeout.
         if !watchdog.set_run_timeout() {
@@ -346,18 +620,38 @@ mod firmware {
             state,
             dac,
             timer,
+            #[cfg(not(feature = "emulator-netduinoplus2"))]
             adc,
             watchdog,
             consecutive_dac_timeouts: 0,
+            #[cfg(not(feature = "measurement-mode"))]
+            conditioning,
             #[cfg(feature = "measurement-mode")]
             recorder,
         };
         if APP.give(app).is_err() {
-            halt("control state handed over twice");
+            halt("control state handed over twice", EXIT_ARGUMENTS);
         }
         // SAFETY: APP is published (release) before the interrupt can run.
         unsafe { cortex_m::peripheral::NVIC::unmask(Interrupt::TIM2) };
+        #[cfg(feature = "emulator-netduinoplus2")]
+        emulated_run(link, p.control.sample_rate_hz, ticks, ramp_ticks);
 
+        #[cfg(not(feature = "emulator-netduinoplus2"))]
+        thread_mode(
+            rate_hz,
+            #[cfg(feature = "measurement-mode")]
+            drain,
+        )
+    }
+
+    /// Thread mode on the board: the status line once per second of control time (the
+    /// measurement image: the record's drain into RTT first).
+    #[cfg(not(feature = "emulator-netduinoplus2"))]
+    fn thread_mode(
+        rate_hz: u32,
+        #[cfg(feature = "measurement-mode")] mut drain: RecordDrain<'static>,
+    ) -> ! {
         let mut next_report = rate_hz;
         #[cfg(feature = "measurement-mode")]
         let mut record_open = true;
@@ -395,7 +689,7 @@ mod firmware {
                     SPI_TIMEOUTS.load(Ordering::Relaxed),
                     MERGES.load(Ordering::Relaxed),
                     SENSOR_FAULTS.load(Ordering::Relaxed),
-                    rtt::DROPPED_BYTES.load(Ordering::Relaxed)
+                    log_bytes_dropped()
                 );
             }
         }

@@ -69,9 +69,9 @@ mod firmware {
     use magctl::board::command_line::CommandLine;
     use magctl::board::handoff::HandOff;
     use magctl::board::mps2_an386::capture::{encode, Record, Ring};
-    use magctl::board::mps2_an386::semihosting::{self, HostFile};
     use magctl::board::mps2_an386::timer::CmsdkTimer;
     use magctl::board::mps2_an386::{take_dac, Dac, Timer0Irq, TIMER0_BASE, TIMER1_BASE};
+    use magctl::board::semihosting::{self, HostFile};
     use magctl::inverse::{
         ControlLoop, EverettBisectionInverter, InverseKind, LoopCore, LoopState, NaiveLoopState,
         RelayGridInverter,
@@ -772,7 +772,7 @@ mod firmware {
             dropped,
             app.faults,
             app.spi_timeouts,
-            magctl::board::mps2_an386::logger::DROPPED_BYTES.load(Ordering::Relaxed)
+            magctl::board::semihosting::logger::DROPPED_BYTES.load(Ordering::Relaxed)
         );
         let ok = app.overruns == 0
             && dropped == 0

@@ -7,7 +7,9 @@
 //!   controller driving the DAC, semihosting for the capture stream, logs (defmt) and exit codes.
 //! * [`nucleo_f446re`] (feature `board-nucleo-f446re`): NUCLEO-F446RE (STM32F446RE, Cortex-M4F,
 //!   180 MHz): TIM2 as the control timer, SPI1 driving the DAC, defmt over RTT, fatal paths that
-//!   command 0 A and halt for the probe.
+//!   command 0 A and halt for the probe. Its emulator build (feature `emulator-netduinoplus2`)
+//!   runs the same code on QEMU's `netduinoplus2` (STM32F405) with the plant link on USART2.
+//! * [`semihosting`]: semihosting calls and the defmt logger over them, for both QEMU machines.
 //!
 //! Linker files live in `boards/<board>/` (selected by `build.rs` from the feature).
 
@@ -19,5 +21,10 @@ pub mod mps2_an386;
 #[cfg(all(target_os = "none", feature = "board-nucleo-f446re"))]
 pub mod nucleo_f446re;
 pub mod polled_spi;
+#[cfg(all(
+    target_os = "none",
+    any(feature = "board-mps2-an386", feature = "emulator-netduinoplus2")
+))]
+pub mod semihosting;
 #[cfg(target_os = "none")]
 pub mod stack;

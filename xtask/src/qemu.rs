@@ -186,6 +186,37 @@ pub fn qemu_command(timeout_s: &str, serial: &str, semi: &str, elf: &Path) -> Co
     cmd
 }
 
+/// `timeout TIMEOUT qemu-system-arm` on `netduinoplus2` (STM32F405) for the NUCLEO image's
+/// emulator build: USART1 unconnected, USART2 (the plant link) on `serial`, semihosting (`semi`),
+/// `-icount shift=0,sleep=off` (1 ns of virtual time per instruction: the handler's work, about
+/// a thousand instructions, fits the emulated TIM2's period, and an idle core skips to the next
+/// timer event), `elf` as the kernel.
+pub fn netduino_command(timeout_s: &str, serial: &str, semi: &str, elf: &Path) -> Command {
+    let mut cmd = Command::new("timeout");
+    cmd.args([
+        timeout_s,
+        "qemu-system-arm",
+        "-machine",
+        "netduinoplus2",
+        "-nographic",
+        "-monitor",
+        "none",
+        "-serial",
+        "null",
+        "-serial",
+        serial,
+        "-semihosting-config",
+        semi,
+        "-icount",
+        "shift=0,sleep=off",
+    ]);
+    if std::env::var_os("DEBUG_GDB").is_some() {
+        cmd.args(["-gdb", "tcp::3334"]);
+    }
+    cmd.arg("-kernel").arg(elf);
+    cmd
+}
+
 fn qemu(elf: &Path, out_dir: &Path, extra_arg: Option<&str>) -> Command {
     let mut semi = String::from("enable=on,target=native,arg=firmware-qemu");
     if let Some(a) = extra_arg {

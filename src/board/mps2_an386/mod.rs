@@ -6,10 +6,8 @@
 
 pub mod capture;
 pub mod fpgaio;
-pub mod logger;
 pub mod panic;
 pub mod pl022;
-pub mod semihosting;
 pub mod timer;
 pub mod uart;
 pub mod vectors;

@@ -10,7 +10,7 @@
 //! proof; `cargo xtask qemu` builds it, and builds the `panic-never-canary` variant, which must
 //! fail to link).
 
-use super::semihosting::exit;
+use crate::board::semihosting::exit;
 
 /// Exit status after a panic.
 pub const EXIT_PANIC: u32 = 101;

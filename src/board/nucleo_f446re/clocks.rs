@@ -97,6 +97,22 @@ impl ClockError {
 
 /// Polls `done` at most [`READY_POLLS`] times, calling `feed` (the watchdog) at each; whether it
 /// became true.
+/// How [`init`] treats the flags after the HSE's (PLL lock, over-drive, flash latency read-back,
+/// clock switch).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LockFlags {
+    /// Polled with the bound, as on the chip (the board image always).
+    Polled,
+    /// Taken as set at once: QEMU's `netduinoplus2` has no RCC, PWR or FLASH model (they read
+    /// 0). The emulator build's default; it still runs the HSE's bounded wait, which times out
+    /// there, and the HSI fallback after it.
+    AssumedSet,
+}
+
+fn spin_until_locked(flags: LockFlags, feed: &mut impl FnMut(), done: impl Fn() -> bool) -> bool {
+    flags == LockFlags::AssumedSet || spin_until(feed, done)
+}
+
 fn spin_until(feed: &mut impl FnMut(), done: impl Fn() -> bool) -> bool {
     for _ in 0..READY_POLLS {
         if done() {
@@ -108,12 +124,13 @@ fn spin_until(feed: &mut impl FnMut(), done: impl Fn() -> bool) -> bool {
 }
 
 /// Switches the system to the 180 MHz PLL clock, from the HSE or, when it does not come up, the
-/// HSI (module docs); `feed` is called while waiting (the start-up watchdog). Call once, after
-/// the DAC's 0 A and the watchdog's start.
+/// HSI (module docs); `flags` is [`LockFlags::Polled`] on the chip; `feed` is called while
+/// waiting (the start-up watchdog). Call once, after the DAC's 0 A and the watchdog's start.
 pub fn init(
     rcc: &pac::RCC,
     pwr: &pac::PWR,
     flash: &pac::FLASH,
+    flags: LockFlags,
     mut feed: impl FnMut(),
 ) -> Result<ClockSource, ClockError> {
     let feed = &mut feed;
@@ -141,27 +158,31 @@ pub fn init(
     });
     rcc.cr()
         .modify(|r, w| unsafe { w.bits(r.bits() | RCC_CR_PLLON) });
-    if !spin_until(feed, || rcc.cr().read().bits() & RCC_CR_PLLRDY != 0) {
+    if !spin_until_locked(flags, feed, || rcc.cr().read().bits() & RCC_CR_PLLRDY != 0) {
         return Err(ClockError::PllLock);
     }
     // Over-drive for 180 MHz (RM0390 §5.1.4: after PLL on, before the switch).
     pwr.cr()
         .modify(|r, w| unsafe { w.bits(r.bits() | PWR_CR_ODEN) });
-    if !spin_until(feed, || pwr.csr().read().bits() & PWR_CSR_ODRDY != 0) {
+    if !spin_until_locked(flags, feed, || pwr.csr().read().bits() & PWR_CSR_ODRDY != 0) {
         return Err(ClockError::OverDrive);
     }
     pwr.cr()
         .modify(|r, w| unsafe { w.bits(r.bits() | PWR_CR_ODSWEN) });
-    if !spin_until(feed, || pwr.csr().read().bits() & PWR_CSR_ODSWRDY != 0) {
+    if !spin_until_locked(flags, feed, || {
+        pwr.csr().read().bits() & PWR_CSR_ODSWRDY != 0
+    }) {
         return Err(ClockError::OverDriveSwitch);
     }
     flash.acr().write(|w| unsafe { w.bits(FLASH_ACR) });
-    if !spin_until(feed, || flash.acr().read().bits() & 0xF == FLASH_ACR & 0xF) {
+    if !spin_until_locked(flags, feed, || {
+        flash.acr().read().bits() & 0xF == FLASH_ACR & 0xF
+    }) {
         return Err(ClockError::FlashLatency);
     }
     rcc.cfgr()
         .write(|w| unsafe { w.bits(CFGR_PPRE1_DIV4 | CFGR_PPRE2_DIV2 | CFGR_SW_PLL) });
-    if !spin_until(feed, || {
+    if !spin_until_locked(flags, feed, || {
         rcc.cfgr().read().bits() & CFGR_SWS_MASK == CFGR_SWS_PLL
     }) {
         return Err(ClockError::SystemSwitch);

@@ -7,6 +7,10 @@
 //! `probe-rs run` the probe stops, prints the backtrace and exits non-zero; without a probe the
 //! breakpoint escalates to a (locked-up) HardFault and the core stays stopped with 0 A commanded.
 //!
+//! In the emulator build (feature `emulator-netduinoplus2`) step (4) is a semihosting exit with
+//! the virtual bench's status instead (`docs/hil.md`: 101 panic, 102 HardFault or an unexpected
+//! interrupt), so that a fatal path ends QEMU with that status rather than in a lock-up.
+//!
 //! With the `panic-never` feature the panic handler instead calls an undefined function, so the
 //! image links only if the optimizer proved every panic unreachable (the link-time no-panic
 //! proof, the same as for the QEMU board; `cargo xtask test` builds it).
@@ -52,10 +56,23 @@ pub fn safe_output() {
     gpiob.bsrr().write(|w| unsafe { w.bits(1 << CS_PIN) });
 }
 
-fn stop() -> ! {
+/// Status of a panic under the emulator (`docs/hil.md`).
+pub const EXIT_PANIC: u32 = 101;
+/// Status of a HardFault or an unexpected interrupt under the emulator.
+pub const EXIT_FAULT: u32 = 102;
+
+/// Halts for the probe (`status` is the emulator build's exit status).
+#[cfg(not(feature = "emulator-netduinoplus2"))]
+pub fn stop(_status: u32) -> ! {
     loop {
         cortex_m::asm::bkpt();
     }
+}
+
+/// Ends the emulator's run with `status`.
+#[cfg(feature = "emulator-netduinoplus2")]
+pub fn stop(status: u32) -> ! {
+    crate::board::semihosting::exit(status)
 }
 
 #[cfg(not(feature = "panic-never"))]
@@ -64,7 +81,7 @@ fn panic(_info: &core::panic::PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     safe_output();
     defmt::error!("panic: control stopped, DAC at 0 A");
-    stop()
+    stop(EXIT_PANIC)
 }
 
 #[cfg(feature = "panic-never")]
@@ -85,7 +102,7 @@ unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
         "HardFault at pc {=u32:#x}: control stopped, DAC at 0 A",
         frame.pc()
     );
-    stop()
+    stop(EXIT_FAULT)
 }
 
 #[cortex_m_rt::exception]
@@ -96,5 +113,5 @@ unsafe fn DefaultHandler(irqn: i16) {
         "unexpected interrupt {=i16}: control stopped, DAC at 0 A",
         irqn
     );
-    stop()
+    stop(EXIT_FAULT)
 }

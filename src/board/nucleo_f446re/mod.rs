@@ -17,15 +17,31 @@
 //!   breakpoint (probe-rs reports it and exits non-zero).
 //! * [`watchdog`]: the independent watchdog, fed by the control interrupt (a stalled loop resets
 //!   the chip into the 0 A start-up state).
-//! * [`rtt`]: the defmt global logger over RTT (SEGGER RTT up-channel 0), panic-free.
+//! * [`rtt`]: the defmt global logger over RTT (SEGGER RTT up-channel 0), panic-free; in the
+//!   emulator build the logger is `board::semihosting::logger` instead.
+//! * [`emulator`] (feature `emulator-netduinoplus2`): the plant link on USART2 that stands in for
+//!   the ADC under QEMU's `netduinoplus2`.
 //!
 //! Everything is programmed at register level through the `stm32f4` PAC (not `stm32f4xx-hal`,
 //! whose clock set-up has panic paths): the whole image links with `--features panic-never`.
 
 pub mod adc;
 pub mod clocks;
+#[cfg(feature = "emulator-netduinoplus2")]
+pub mod emulator;
 pub mod fatal;
+#[cfg(not(feature = "emulator-netduinoplus2"))]
 pub mod rtt;
 pub mod spi;
 pub mod timer;
 pub mod watchdog;
+
+/// Log bytes the image's defmt logger has dropped (ring full, nested or overlong frames).
+pub fn log_bytes_dropped() -> u32 {
+    use core::sync::atomic::Ordering;
+    #[cfg(not(feature = "emulator-netduinoplus2"))]
+    let dropped = rtt::DROPPED_BYTES.load(Ordering::Relaxed);
+    #[cfg(feature = "emulator-netduinoplus2")]
+    let dropped = crate::board::semihosting::logger::DROPPED_BYTES.load(Ordering::Relaxed);
+    dropped
+}

@@ -59,4 +59,13 @@ impl ControlTimer {
     pub fn pending(&self) -> bool {
         self.regs.sr().read().bits() & SR_UIF != 0
     }
+
+    /// Emulator build: stops the counter (the update interrupt is then pended by software,
+    /// `firmware-nucleo`'s `bench` module says why); the registers stay configured.
+    #[cfg(feature = "emulator-netduinoplus2")]
+    pub fn stopped(self) -> Self {
+        // SAFETY: URS without CEN: the counter stops, nothing else changes.
+        self.regs.cr1().write(|w| unsafe { w.bits(CR1_URS) });
+        self
+    }
 }

@@ -41,6 +41,7 @@ pub const TIMEOUT_MAX_MS: f32 = (RELOAD + 1) as f32 * 4.0 / 17.0;
 /// SR bits: prescaler / reload update in progress.
 const SR_PVU_RVU: u16 = 0b11;
 /// DBGMCU_APB1_FZ bit 12: IWDG stopped while the core is halted.
+#[cfg(not(feature = "emulator-netduinoplus2"))]
 const DBG_IWDG_STOP: u32 = 1 << 12;
 /// RCC_CSR bit 29: the last reset came from the IWDG; bit 24 RMVF clears the reset flags.
 const CSR_IWDGRSTF: u32 = 1 << 29;
@@ -77,9 +78,13 @@ impl Watchdog {
         // SAFETY: fixed peripheral address; only this handle writes the IWDG.
         let regs: &'static pac::iwdg::RegisterBlock = unsafe { &*pac::IWDG::ptr() };
         // SAFETY (all `bits` writes): key and field values from RM0390 §20.4.
+        // DBGMCU is absent from QEMU's `netduinoplus2` (an access there is logged as unassigned).
+        #[cfg(not(feature = "emulator-netduinoplus2"))]
         dbgmcu
             .apb1_fz()
             .modify(|r, w| unsafe { w.bits(r.bits() | DBG_IWDG_STOP) });
+        #[cfg(feature = "emulator-netduinoplus2")]
+        let _ = dbgmcu;
         regs.kr().write(|w| unsafe { w.bits(KEY_START) });
         let dog = Watchdog { regs };
         let configured = dog.configure(PR_DIV32, BOOT_RELOAD);

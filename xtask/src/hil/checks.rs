@@ -13,7 +13,8 @@ use std::fmt::Write as _;
 /// conditioning vs random prior histories; measure → identify → re-bake → track
 /// ([`end_to_end`], on a rod the coil cannot saturate); the interrupt's worst case on rods the
 /// baked file does not describe (`super::matrix`, ≤ 1,500 instructions); a NaN sample (exit 7), a
-/// silent link (exit 8) and a desynchronized frame (exit 8), each ending at 0 A.
+/// silent link (exit 8) and a desynchronized frame (exit 8), each ending at 0 A; the NUCLEO image
+/// under the STM32 emulator (`super::nucleo`).
 pub fn check(ctx: &Ctx) -> Result<String> {
     let elf = firmware(ctx)?;
     let exe = maglab(ctx)?;
@@ -137,41 +138,49 @@ pub fn check(ctx: &Ctx) -> Result<String> {
              {at}: a fault of its own (a lost or late frame)",
             r.commands
         );
-        let rows = std::fs::read_to_string(f.out.join("link.csv"))?;
-        // The last tick the firmware commanded (a row may hold only a plant sample).
-        let last = rows
-            .lines()
-            .rev()
-            .find(|l| l.split(',').nth(4).is_some_and(|c| !c.is_empty()))
-            .unwrap_or_default()
-            .to_string();
-        let current: f64 = last
-            .split(',')
-            .nth(4)
-            .and_then(|c| c.parse().ok())
-            .with_context(|| format!("{name}: no current in the last link row `{last}`"))?;
-        if zero {
-            ensure!(
-                current == 0.0,
-                "{name}: the last command is {current} A, not 0 A"
-            );
-        } else {
-            // Feedback on: the loop fell back to the feedforward, which keeps driving the coil;
-            // every command from the fault on carries SENSOR_FAULT | FEEDFORWARD (the firmware
-            // checks that itself, exit 3 otherwise).
-            let flags: u8 = last
-                .split(',')
-                .nth(6)
-                .and_then(|c| c.parse().ok())
-                .unwrap_or(0);
-            ensure!(
-                current != 0.0
-                    && flags & (CommandFlags::SENSOR_FAULT | CommandFlags::FEEDFORWARD)
-                        == CommandFlags::SENSOR_FAULT | CommandFlags::FEEDFORWARD,
-                "{name}: the feedforward fallback should keep tracking, flagged: got {current} A, flags {flags}"
-            );
-        }
+        check_fault_end(name, &f.out, zero)?;
     }
+    summary.push_str(&super::nucleo::check(ctx, &exe, &base.join("nucleo"))?);
     std::fs::write(base.join("summary.txt"), &summary)?;
     Ok(summary)
+}
+
+/// The last command of a fault run (`link.csv` in `out`): 0 A when `zero`, else the feedforward
+/// fallback, still driving the coil and flagged `SENSOR_FAULT | FEEDFORWARD`.
+pub(super) fn check_fault_end(name: &str, out: &std::path::Path, zero: bool) -> Result<()> {
+    let rows = std::fs::read_to_string(out.join("link.csv"))?;
+    // The last tick the firmware commanded (a row may hold only a plant sample).
+    let last = rows
+        .lines()
+        .rev()
+        .find(|l| l.split(',').nth(4).is_some_and(|c| !c.is_empty()))
+        .unwrap_or_default()
+        .to_string();
+    let current: f64 = last
+        .split(',')
+        .nth(4)
+        .and_then(|c| c.parse().ok())
+        .with_context(|| format!("{name}: no current in the last link row `{last}`"))?;
+    if zero {
+        ensure!(
+            current == 0.0,
+            "{name}: the last command is {current} A, not 0 A"
+        );
+    } else {
+        // Feedback on: the loop fell back to the feedforward, which keeps driving the coil;
+        // every command from the fault on carries SENSOR_FAULT | FEEDFORWARD (the firmware
+        // checks that itself, exit 3 otherwise).
+        let flags: u8 = last
+            .split(',')
+            .nth(6)
+            .and_then(|c| c.parse().ok())
+            .unwrap_or(0);
+        ensure!(
+            current != 0.0
+                && flags & (CommandFlags::SENSOR_FAULT | CommandFlags::FEEDFORWARD)
+                    == CommandFlags::SENSOR_FAULT | CommandFlags::FEEDFORWARD,
+            "{name}: the feedforward fallback should keep tracking, flagged: got {current} A, flags {flags}"
+        );
+    }
+    Ok(())
 }

@@ -31,6 +31,7 @@ mod end_to_end;
 mod link_log;
 mod matrix;
 mod measurement;
+mod nucleo;
 
 pub use checks::check;
 pub use end_to_end::end_to_end;
@@ -38,7 +39,9 @@ pub use matrix::interrupt_matrix;
 pub use measurement::{identification_programme, Programme};
 
 use crate::frame_socket::{FrameSocket, WAKE_BOUND};
-use crate::qemu::{build_bin, decode_defmt, firmware_dir, qemu_command, stats, TARGET};
+use crate::qemu::{
+    build_bin, decode_defmt, firmware_dir, netduino_command, qemu_command, stats, TARGET,
+};
 use crate::util::{display, run_checked, Ctx};
 use anyhow::{bail, ensure, Context, Result};
 use bridge::{Collected, LinkActivity};
@@ -88,9 +91,24 @@ impl Inject {
     }
 }
 
+/// Which firmware image and QEMU machine run the bench.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Board {
+    /// `firmware-hil` on `mps2-an386` (the plant link on UART0; instruction counts exact).
+    Mps2,
+    /// The NUCLEO image (`firmware-nucleo`, its emulator build) on `netduinoplus2`: the board's
+    /// TIM2, SPI1, watchdog and start-up code, the plant link on USART2 (docs/firmware.md).
+    Nucleo,
+}
+
 /// One run's settings.
 #[derive(Debug, Clone)]
 pub struct HilRun {
+    /// The image and machine.
+    pub board: Board,
+    /// NUCLEO image only: poll the clock flags after the HSE's as on the chip (`clocks=board`;
+    /// the emulator never sets them: the start-up halts at 0 A, exit 9).
+    pub board_clock_flags: bool,
     /// External plant command (`sh -c`), or the default plant.
     pub plant_cmd: Option<String>,
     /// Effects of the default plant.
@@ -136,6 +154,8 @@ impl HilRun {
     /// Default settings writing into `out`.
     pub fn new(out: PathBuf) -> Self {
         HilRun {
+            board: Board::Mps2,
+            board_clock_flags: false,
             plant_cmd: None,
             effects: Vec::new(),
             noise_m: None,
@@ -190,6 +210,18 @@ pub fn maglab(ctx: &Ctx) -> Result<PathBuf> {
     let exe = target.join("debug").join("maglab");
     ensure!(exe.exists(), "{} was not built", exe.display());
     Ok(exe)
+}
+
+/// Features of the NUCLEO image's emulator build.
+const NUCLEO_EMULATOR_FEATURES: &str = "emulator-netduinoplus2,panic-never";
+
+/// Builds the NUCLEO image's emulator build and returns its ELF.
+pub fn nucleo_emulator_firmware(ctx: &Ctx) -> Result<PathBuf> {
+    run_checked(build_bin(ctx, "firmware-nucleo", NUCLEO_EMULATOR_FEATURES))?;
+    Ok(firmware_dir(ctx)
+        .join(TARGET)
+        .join("release")
+        .join("firmware-nucleo"))
 }
 
 /// Builds the HIL firmware and returns its ELF.
@@ -249,6 +281,25 @@ fn plant_command(
 
 /// The firmware's ticks and its semihosting command line (`docs/hil.md`).
 fn firmware_arguments(run: &HilRun) -> Result<(u32, String)> {
+    if run.board == Board::Nucleo {
+        ensure!(
+            run.measure.is_none()
+                && run.measure_local.is_none()
+                && run.inverse == "dynamic"
+                && run.conditioning
+                && run.feedback,
+            "the NUCLEO image tracks with its baked settings: no measurement mode, --inverse, \
+             --no-conditioning or --feedback-off on --board nucleo"
+        );
+        let mut semi = format!(
+            "enable=on,target=native,arg=firmware-nucleo,arg=ticks={}",
+            run.ticks
+        );
+        if run.board_clock_flags {
+            semi.push_str(",arg=clocks=board");
+        }
+        return Ok((run.ticks, semi));
+    }
     let ticks = match (&run.measure, &run.measure_local) {
         (Some((p, _)), _) => run.measure_ticks.unwrap_or(p.current_a.len() as u32),
         (None, Some(_)) => local_programme_ticks()?,
@@ -406,12 +457,11 @@ pub fn run_once(
     let port = listener.local_addr()?.port();
     let elf = run.elf.as_deref().unwrap_or(elf);
     let (ticks, semi) = firmware_arguments(run)?;
-    let mut qemu = qemu_command(
-        QEMU_TIMEOUT_S,
-        &format!("tcp:127.0.0.1:{port},nodelay=on"),
-        &semi,
-        elf,
-    );
+    let serial = format!("tcp:127.0.0.1:{port},nodelay=on");
+    let mut qemu = match run.board {
+        Board::Mps2 => qemu_command(QEMU_TIMEOUT_S, &serial, &semi, elf),
+        Board::Nucleo => netduino_command(QEMU_TIMEOUT_S, &serial, &semi, elf),
+    };
     qemu.current_dir(&out_abs)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
@@ -425,6 +475,9 @@ pub fn run_once(
         println!("  qemu stderr: {}", b.qemu_stderr);
     }
     write_link_csv(&out_abs.join("link.csv"), &b.rows)?;
+    if b.rows.iter().all(|r| r.command.is_none()) && run.expect_exit != 0 {
+        return halted_before_first_tick(run, &b, &out_abs);
+    }
     let record_line = write_measurement(run, &b, &log_lines)?;
     let (commands, conditioning_ticks, instr) = interrupt_costs(&b)?;
     let tracking = tracking_error(&plant_log, &b.rows)?;
@@ -455,6 +508,31 @@ pub fn run_once(
         summary: s,
         frames: b.rows.iter().filter_map(|r| r.command).collect(),
         instructions: instr,
+    })
+}
+
+/// A run that ended before its first tick (a start-up halt the run expects): its exit status is
+/// the result.
+fn halted_before_first_tick(run: &HilRun, b: &Bridged, out: &Path) -> Result<HilResult> {
+    let s = format!(
+        "hil: start-up only\n  firmware exit {} (expected {}) before its first tick, plant {}\n  wall time {:.1} s\n",
+        b.exit, run.expect_exit, b.plant_status, b.wall_s
+    );
+    print!("{s}");
+    std::fs::write(out.join("summary.txt"), &s)?;
+    ensure!(
+        b.exit == run.expect_exit,
+        "firmware exit status {}, expected {}",
+        b.exit,
+        run.expect_exit
+    );
+    Ok(HilResult {
+        commands: 0,
+        tracking: None,
+        wall_s: b.wall_s,
+        summary: s,
+        frames: Vec::new(),
+        instructions: (f64::NAN, f64::NAN, f64::NAN),
     })
 }
 
@@ -558,18 +636,26 @@ fn summary(
         "  firmware exit {} (expected {}), {commands} command frames ({conditioning_ticks} start-up conditioning), plant exit {}",
         b.exit, run.expect_exit, b.plant_status
     )?;
-    writeln!(
-        s,
-        "  control interrupt {} instructions min {:.0} median {:.0} max {:.0}",
-        if run.measure.is_some() || run.measure_local.is_some() {
-            "(sample read, programme current through the limiter, DAC frame):"
-        } else {
-            "while tracking (sensor read, trajectory, inverse, limiter, DAC frame):"
-        },
-        instr.0,
-        instr.1,
-        instr.2
-    )?;
+    if run.board == Board::Nucleo {
+        writeln!(
+            s,
+            "  control interrupt (TIM2 update, plant sample over USART2, conditioning or tracking, SPI1 DAC frame): \
+             instructions not counted on netduinoplus2 (the mps2-an386 bench counts them)"
+        )?;
+    } else {
+        writeln!(
+            s,
+            "  control interrupt {} instructions min {:.0} median {:.0} max {:.0}",
+            if run.measure.is_some() || run.measure_local.is_some() {
+                "(sample read, programme current through the limiter, DAC frame):"
+            } else {
+                "while tracking (sensor read, trajectory, inverse, limiter, DAC frame):"
+            },
+            instr.0,
+            instr.1,
+            instr.2
+        )?;
+    }
     if let Some((rms, max, on)) = tracking {
         writeln!(
             s,
@@ -636,6 +722,14 @@ pub struct Args {
     /// written to the dataset folder DIR.
     #[arg(long, value_name = "DIR")]
     measure_local: Option<PathBuf>,
+    /// The image and QEMU machine: mps2 (`firmware-hil` on mps2-an386) or nucleo (the NUCLEO
+    /// image's emulator build on netduinoplus2).
+    #[arg(long, value_enum, default_value_t = Board::Mps2)]
+    board: Board,
+    /// With --board nucleo: poll the clock flags the emulator never sets, as on the chip (the
+    /// start-up must halt at 0 A: exit 9).
+    #[arg(long, requires = "board")]
+    board_clock_flags: bool,
     /// Output directory.
     #[arg(long, default_value = "out/hil")]
     out: PathBuf,
@@ -675,10 +769,15 @@ pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
     run.inject = args.inject;
     run.expect_exit = args.expect_exit;
     run.measure_local = args.measure_local.clone();
+    run.board = args.board;
+    run.board_clock_flags = args.board_clock_flags;
     if let Some(dir) = &args.measure {
         run.measure = Some((Arc::new(identification_programme()?), dir.clone()));
     }
-    let elf = firmware(ctx)?;
+    let elf = match run.board {
+        Board::Mps2 => firmware(ctx)?,
+        Board::Nucleo => nucleo_emulator_firmware(ctx)?,
+    };
     let exe = if run.plant_cmd.is_none() {
         Some(maglab(ctx)?)
     } else {

@@ -1,9 +1,13 @@
-//! Semihosting calls used by the QEMU firmware: open/write/close of host files (the capture
-//! stream), the command line (fault injection), and exit with a status code.
+//! Semihosting calls used by the firmware under QEMU (both machines: `mps2-an386` and the
+//! NUCLEO image's emulator build on `netduinoplus2`): open/write/close of host files (the capture
+//! stream), the command line (fault injection), exit with a status code, and ([`logger`]) the
+//! defmt global logger on the host's stdout.
 //!
 //! Under QEMU each call is a single `bkpt 0xAB` instruction: with `-icount` the guest's virtual
 //! clock advances by one instruction per call however long the host takes, so streaming does not
 //! disturb the control timing.
+
+pub mod logger;
 
 use cortex_m_semihosting::{nr, syscall};
 

@@ -4,7 +4,7 @@
 //! bytes and counts them instead of panicking. `cargo xtask qemu` decodes the stream with the
 //! ELF's defmt table.
 
-use super::semihosting::{stdout, HostFile};
+use super::{stdout, HostFile};
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
