@@ -10,6 +10,7 @@ section) on stdout. Used by `cargo xtask hil --check` to prove that any program 
 protocol can stand in for the default plant.
 """
 import argparse
+import os
 import json
 import math
 import struct
@@ -61,6 +62,13 @@ def main():
         stdout.write(struct.pack("<BBHI", SYNC, ord("S"), tick & 0xFFFF, count))
         stdout.flush()
 
+    # Optional (docs/hil.md, "Scoring"): the true displacement at the end of each tick's period,
+    # so that the bench scores the tracking on it rather than on the sensed value.
+    true_path = os.environ.get("HIL_TRUE_DISPLACEMENT_CSV")
+    true_log = open(true_path, "w") if true_path else None
+    if true_log:
+        true_log.write("tick,y_m\n")
+
     send(0, y)
     tick = 0
     while True:
@@ -78,6 +86,8 @@ def main():
         target = args.mount_offset_m + args.stroke_m * math.tanh(c0 * current_a / args.h_sat_a_per_m) ** 2
         for _ in range(20):
             y += dt / args.tau_s * (target - y)
+        if true_log:
+            true_log.write(f"{tick},{y!r}\n")
         tick += 1
         if tick < ticks:
             send(tick, y)

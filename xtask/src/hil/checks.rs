@@ -49,6 +49,13 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     py.ticks = 2_000;
     let r = run_once(ctx, &elf, None, &py)?;
     summary.push_str(&r.summary);
+    // The Python plant writes its true displacement (docs/hil.md, "Scoring"): the tracking
+    // figure is scored on it, and says so.
+    ensure!(
+        r.tracking.map(|t| t.2) == Some("true displacement, reported by the plant"),
+        "the Python plant's tracking was scored on {:?}, not on its reported true displacement",
+        r.tracking.map(|t| t.2)
+    );
     ensure!(
         r.commands > py.ticks as usize,
         "{} commands for {} tracking ticks and the conditioning",

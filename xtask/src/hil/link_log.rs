@@ -1,7 +1,7 @@
 //! The link's log (`link.csv`: one row per tick, the plant's sample and the firmware's command)
 //! and the tracking error scored from it or from the plant's own log.
 
-use anyhow::{ensure, Context, Result};
+use anyhow::{bail, ensure, Context, Result};
 use magctl::inverse::CommandFlags;
 use magctl::link::{CommandFrame, Sample};
 use magctl::params::BAKED_PARAMETERS;
@@ -54,47 +54,32 @@ pub(super) fn write_link_csv(path: &Path, rows: &[TickRow]) -> Result<()> {
     Ok(())
 }
 
-/// RMS and max |y − ȳ| in % of ȳ's peak-to-peak over the tracking ticks (conditioning excluded): the plant's true
-/// displacement from its log when present, the next tick's sensor reading otherwise.
+/// The file an external plant may write its true displacement to (`docs/hil.md`, "Scoring"):
+/// `tick,y_m`, one row per tick, `y_m` the rod's true displacement at the end of the tick's
+/// period. Its path is passed in this environment variable.
+pub const TRUE_DISPLACEMENT_ENV: &str = "HIL_TRUE_DISPLACEMENT_CSV";
+
+/// RMS and max |y − ȳ| in % of ȳ's peak-to-peak over the tracking ticks (conditioning excluded),
+/// and what `y` was: the plant's true displacement from its log (`maglab hil-plant`) or from the
+/// file an external plant wrote (`true_displacement`), else the next tick's sensor reading.
 pub(super) fn tracking_error(
     plant_log: &Path,
+    true_displacement: &Path,
     rows: &[TickRow],
 ) -> Result<Option<(f64, f64, &'static str)>> {
-    let mut pairs: Vec<(f64, f64)> = Vec::new();
-    let on;
-    if plant_log.exists() {
-        on = "true displacement, plant log";
-        let text = std::fs::read_to_string(plant_log)?;
-        for (n, line) in text.lines().enumerate().skip(1) {
-            let cols: Vec<&str> = line.split(',').collect();
-            ensure!(
-                cols.len() == 9,
-                "{}: line {}: expected 9 columns",
-                plant_log.display(),
-                n + 1
-            );
-            let desired: f64 = cols[3].parse().with_context(|| format!("line {}", n + 1))?;
-            let y: f64 = cols[4].parse().with_context(|| format!("line {}", n + 1))?;
-            let flags: u8 = cols[7].parse().with_context(|| format!("line {}", n + 1))?;
-            if flags & (CommandFlags::CONDITIONING | CommandFlags::MEASURE) == 0 {
-                pairs.push((desired, y));
-            }
-        }
+    let (pairs, on) = if plant_log.exists() {
+        (plant_log_pairs(plant_log)?, "true displacement, plant log")
+    } else if true_displacement.exists() {
+        (
+            reported_pairs(true_displacement, rows)?,
+            "true displacement, reported by the plant",
+        )
     } else {
-        on = "sensor reading at the period's end";
-        let scale = SensorScale::new(&BAKED_PARAMETERS.sensor);
-        for w in rows.windows(2) {
-            if let (Some(c), Some(s)) = (w[0].command, w[1].sample) {
-                if c.flags & (CommandFlags::CONDITIONING | CommandFlags::MEASURE) != 0 {
-                    continue;
-                }
-                let y = sample_m(&scale, s);
-                if y.is_finite() {
-                    pairs.push((c.desired_m as f64, y));
-                }
-            }
-        }
-    }
+        (
+            sensed_pairs(rows),
+            "SENSED displacement: the sensor reading at the period's end (the plant reported no true displacement)",
+        )
+    };
     if pairs.len() < 2 {
         return Ok(None);
     }
@@ -108,4 +93,84 @@ pub(super) fn tracking_error(
     let rms = (pairs.iter().map(|(d, y)| (y - d).powi(2)).sum::<f64>() / n).sqrt();
     let max = pairs.iter().map(|(d, y)| (y - d).abs()).fold(0.0, f64::max);
     Ok(Some((100.0 * rms / p2p, 100.0 * max / p2p, on)))
+}
+
+/// `(desired, true)` pairs of the tracking ticks from `maglab hil-plant`'s log.
+fn plant_log_pairs(plant_log: &Path) -> Result<Vec<(f64, f64)>> {
+    let mut pairs = Vec::new();
+    let text = std::fs::read_to_string(plant_log)?;
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let cols: Vec<&str> = line.split(',').collect();
+        ensure!(
+            cols.len() == 9,
+            "{}: line {}: expected 9 columns",
+            plant_log.display(),
+            n + 1
+        );
+        let desired: f64 = cols[3].parse().with_context(|| format!("line {}", n + 1))?;
+        let y: f64 = cols[4].parse().with_context(|| format!("line {}", n + 1))?;
+        let flags: u8 = cols[7].parse().with_context(|| format!("line {}", n + 1))?;
+        if flags & (CommandFlags::CONDITIONING | CommandFlags::MEASURE) == 0 {
+            pairs.push((desired, y));
+        }
+    }
+    Ok(pairs)
+}
+
+/// `(desired, true)` pairs of the tracking ticks from an external plant's `tick,y_m` file, the
+/// desired displacement from the tick's command frame. A malformed row, a tick the run did not
+/// command or a non-finite value is an error naming the line.
+fn reported_pairs(path: &Path, rows: &[TickRow]) -> Result<Vec<(f64, f64)>> {
+    let text = std::fs::read_to_string(path)?;
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, "tick,y_m")) => {}
+        other => bail!(
+            "{}: line 1: expected the header `tick,y_m`, found `{}`",
+            path.display(),
+            other.map_or("", |(_, l)| l)
+        ),
+    }
+    let mut pairs = Vec::new();
+    for (n, line) in lines {
+        let at = || format!("{}: line {}: `{line}`", path.display(), n + 1);
+        let (tick, y) = line
+            .split_once(',')
+            .with_context(|| format!("{}: expected `tick,y_m`", at()))?;
+        let tick: usize = tick
+            .trim()
+            .parse()
+            .with_context(|| format!("{}: tick is not a whole number", at()))?;
+        let y: f64 = y
+            .trim()
+            .parse()
+            .with_context(|| format!("{}: y_m is not a number", at()))?;
+        ensure!(y.is_finite(), "{}: y_m is not finite", at());
+        let command = rows
+            .get(tick)
+            .and_then(|r| r.command)
+            .with_context(|| format!("{}: the firmware sent no command for tick {tick}", at()))?;
+        if command.flags & (CommandFlags::CONDITIONING | CommandFlags::MEASURE) == 0 {
+            pairs.push((command.desired_m as f64, y));
+        }
+    }
+    Ok(pairs)
+}
+
+/// `(desired, sensed)` pairs: each tracking tick's command against the next tick's sample.
+fn sensed_pairs(rows: &[TickRow]) -> Vec<(f64, f64)> {
+    let scale = SensorScale::new(&BAKED_PARAMETERS.sensor);
+    let mut pairs = Vec::new();
+    for w in rows.windows(2) {
+        if let (Some(c), Some(s)) = (w[0].command, w[1].sample) {
+            if c.flags & (CommandFlags::CONDITIONING | CommandFlags::MEASURE) != 0 {
+                continue;
+            }
+            let y = sample_m(&scale, s);
+            if y.is_finite() {
+                pairs.push((c.desired_m as f64, y));
+            }
+        }
+    }
+    pairs
 }

@@ -451,7 +451,10 @@ pub fn run_once(
     let out_abs = run.out.canonicalize()?;
     let plant_log = out_abs.join("plant_log.csv");
     let _ = std::fs::remove_file(&plant_log);
+    let true_displacement = out_abs.join("true_displacement.csv");
+    let _ = std::fs::remove_file(&true_displacement);
     let mut plant = plant_command(ctx, maglab_exe, run, &plant_log)?;
+    plant.env(link_log::TRUE_DISPLACEMENT_ENV, &true_displacement);
     println!("$ {}", display(&plant));
     let listener = TcpListener::bind("127.0.0.1:0").context("cannot open a local TCP port")?;
     let port = listener.local_addr()?.port();
@@ -480,7 +483,7 @@ pub fn run_once(
     }
     let record_line = write_measurement(run, &b, &log_lines)?;
     let (commands, conditioning_ticks, instr) = interrupt_costs(&b)?;
-    let tracking = tracking_error(&plant_log, &b.rows)?;
+    let tracking = tracking_error(&plant_log, &true_displacement, &b.rows)?;
     let mut s = summary(
         run,
         ticks,
