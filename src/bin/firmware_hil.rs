@@ -316,6 +316,16 @@ mod firmware {
         magctl::record::log::batches(drain, flush, || true);
     }
 
+    /// The guard's test (`cargo xtask qemu`): recurses until the stack reaches the guard; the run
+    /// must end with the stack-overflow status, never return.
+    #[cfg(feature = "stack-overflow-canary")]
+    #[inline(never)]
+    #[allow(unconditional_recursion)]
+    fn overflow_the_stack(depth: u32) -> u32 {
+        let frame = core::hint::black_box([depth; 64]);
+        overflow_the_stack(depth + 1).wrapping_add(frame[(depth % 64) as usize])
+    }
+
     fn end(uart: &mut CmsdkUart, seq: u16, status: u32) -> ! {
         let frame = CommandFrame {
             kind: KIND_END,
@@ -362,6 +372,10 @@ mod firmware {
     fn main() -> ! {
         // First: the stack's high-water mark is measured against this paint.
         magctl::board::stack::paint();
+        // Then the guard below the stack: an overflow faults instead of overwriting the statics.
+        magctl::board::stack::guard();
+        #[cfg(feature = "stack-overflow-canary")]
+        overflow_the_stack(0);
         let Some(mut cp) = cortex_m::Peripherals::take() else {
             semihosting::exit(4)
         };

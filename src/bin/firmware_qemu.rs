@@ -555,6 +555,8 @@ mod firmware {
     fn main() -> ! {
         // First: the stack's high-water mark is measured against this paint.
         magctl::board::stack::paint();
+        // Then the guard below the stack: an overflow faults instead of overwriting the statics.
+        magctl::board::stack::guard();
         let Some(mut cp) = cortex_m::Peripherals::take() else {
             semihosting::exit(4)
         };

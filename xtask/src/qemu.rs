@@ -30,6 +30,9 @@
 //! 8. **No-panic proof**: builds the firmware with `--features panic-never` (must link: no panic
 //!    path anywhere in the image, ISR included) and with `panic-never-canary` (a bounds check in
 //!    the ISR; must fail to link naming `__firmware_contains_a_reachable_panic_path`).
+//! 9. **Stack guard**: `firmware-hil` with `stack-overflow-canary` recurses until its stack
+//!    reaches the MPU guard (`magctl::board::stack::guard`); the run must end with exit status
+//!    104 (the guard's handler), not a hang, a HardFault or a lock-up.
 //!
 //! Writes `out/qemu/capture.csv` (columns documented in [`CSV_HEADER`]), `out/qemu/tracking.csv`
 //! ([`TRACKING_CSV_HEADER`]) and `out/qemu/summary.txt`.
@@ -724,7 +727,41 @@ fn no_panic_proof(ctx: &Ctx, out_dir: &Path, summary: &mut String) -> Result<()>
         "the canary build (a panic in the ISR) linked: the no-panic proof would not catch a panic"
     );
     say!(summary, "no-panic proof: panic-never build links; the canary (bounds check in the ISR) fails to link as it must");
+    stack_guard(ctx, summary)
+}
 
+/// Exit status of the stack guard's handler on `mps2-an386`.
+const EXIT_STACK_OVERFLOW: i32 = 104;
+
+/// Step 9: a stack overflow ends in the guard's handler.
+fn stack_guard(ctx: &Ctx, summary: &mut String) -> Result<()> {
+    let cmd = build_bin(
+        ctx,
+        "firmware-hil",
+        "board-mps2-an386,stack-overflow-canary",
+    );
+    println!("$ {}", display(&cmd));
+    crate::util::run_checked(cmd)?;
+    let elf = firmware_dir(ctx)
+        .join(TARGET)
+        .join("release")
+        .join("firmware-hil");
+    let mut qemu = qemu_command(
+        "60",
+        "null",
+        "enable=on,target=native,arg=firmware-hil",
+        &elf,
+    );
+    println!("$ {}", display(&qemu));
+    let status = qemu.output().context("cannot run qemu-system-arm")?.status;
+    ensure!(
+        status.code() == Some(EXIT_STACK_OVERFLOW),
+        "the stack-overflow canary ended with {status}, not the guard's exit status {EXIT_STACK_OVERFLOW}"
+    );
+    say!(
+        summary,
+        "stack guard: the overflow canary ends in the guard's handler (exit {EXIT_STACK_OVERFLOW})"
+    );
     Ok(())
 }
 

@@ -60,6 +60,8 @@ pub fn safe_output() {
 pub const EXIT_PANIC: u32 = 101;
 /// Status of a HardFault or an unexpected interrupt under the emulator.
 pub const EXIT_FAULT: u32 = 102;
+/// Status of a stack overflow into the guard under the emulator.
+pub const EXIT_STACK_OVERFLOW: u32 = 104;
 
 /// Halts for the probe (`status` is the emulator build's exit status).
 #[cfg(not(feature = "emulator-netduinoplus2"))]
@@ -92,6 +94,15 @@ fn panic(_info: &core::panic::PanicInfo) -> ! {
         fn __firmware_contains_a_reachable_panic_path() -> !;
     }
     unsafe { __firmware_contains_a_reachable_panic_path() }
+}
+
+/// The stack guard's handler (`board::stack`), on the guard's bytes: 0 A, log, halt.
+#[unsafe(no_mangle)]
+extern "C" fn __stack_overflow() -> ! {
+    cortex_m::interrupt::disable();
+    safe_output();
+    defmt::error!("stack overflow into the guard: control stopped, DAC at 0 A");
+    stop(EXIT_STACK_OVERFLOW)
 }
 
 #[cortex_m_rt::exception]
