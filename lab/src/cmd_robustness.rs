@@ -18,7 +18,11 @@
 //! peak-to-peak.
 //!
 //! Writes `<out>/robustness.csv` (`case,open_loop_rms_pct,closed_loop_rms_pct,
-//! closed_loop_max_pct,current_rms_a`), `<out>/robustness.png/.svg`, and prints the table.
+//! closed_loop_max_pct,current_rms_a`), `<out>/robustness.png/.svg`, and prints the table; and
+//! the learning transient of every closed-loop run, `<out>/transient.csv`
+//! (`case,whole_run_rms_pct,settled_rms_pct,settle_s,settle_cycles`: the RMS over the whole run,
+//! the RMS over the scored window, and when the error last exceeded [`SETTLED_PCT`] of the
+//! peak-to-peak — in seconds and in trajectory cycles; empty when it never stays below).
 
 use crate::params_io::{self, LoadedParams};
 use crate::plot::PALETTE;
@@ -277,6 +281,36 @@ pub fn run_case(
 }
 
 impl Trace {
+    /// The first tick from which `|y − ȳ|` stays below `pct` % of the whole run's peak-to-peak
+    /// (`None` if the last tick is above it).
+    pub fn settled_from(&self, pct: f64) -> Option<usize> {
+        let (lo, hi) = self
+            .desired_m
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(l, h), &d| (l.min(d), h.max(d)));
+        let bound = pct / 100.0 * (hi - lo);
+        let n = self.desired_m.len();
+        match (0..n)
+            .rev()
+            .find(|&k| (self.actual_m[k] - self.desired_m[k]).abs() >= bound)
+        {
+            None => Some(0),
+            Some(k) if k + 1 < n => Some(k + 1),
+            Some(_) => None,
+        }
+    }
+
+    /// The learning transient: whole-run RMS and the settling time, with the trajectory's period
+    /// `period_ticks` (control ticks per cycle) and the control rate.
+    pub fn transient(&self, period_ticks: f64, rate_hz: f64) -> Transient {
+        let settled = self.settled_from(SETTLED_PCT);
+        Transient {
+            whole_run_rms_pct: self.stats(0).rms_pct,
+            settle_s: settled.map(|k| k as f64 / rate_hz),
+            settle_cycles: settled.map(|k| k as f64 / period_ticks),
+        }
+    }
+
     /// Statistics over the ticks from `from`.
     pub fn stats(&self, from: usize) -> RunStats {
         let (mut sq, mut max, mut lo, mut hi, mut isq) = (0.0f64, 0.0f64, f64::MAX, f64::MIN, 0.0);
@@ -304,6 +338,20 @@ impl Trace {
     }
 }
 
+/// The error below which a run counts as settled, % of the trajectory's peak-to-peak.
+pub const SETTLED_PCT: f64 = 1.0;
+
+/// The learning transient of a closed-loop run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transient {
+    /// RMS error over the whole run (the first cycles included), % of the peak-to-peak.
+    pub whole_run_rms_pct: f64,
+    /// Time from which the error stays below [`SETTLED_PCT`], s (`None`: it never does).
+    pub settle_s: Option<f64>,
+    /// The same in cycles of the trajectory.
+    pub settle_cycles: Option<f64>,
+}
+
 /// One row of the matrix.
 #[derive(Debug, Clone)]
 pub struct Row {
@@ -313,6 +361,8 @@ pub struct Row {
     pub open_loop: RunStats,
     /// With the feedback.
     pub closed_loop: RunStats,
+    /// The closed loop's learning transient (`None` when read back from a CSV).
+    pub transient: Option<Transient>,
 }
 
 /// The feedback settings of `params` with `structure` and the gains scaled by `gain_scale`.
@@ -384,10 +434,12 @@ pub fn matrix(
             if let Some(dir) = traces {
                 write_trace(dir, &case.name, rate, &o, &c)?;
             }
+            let period_ticks = loop_for(feedback)?.trajectory().period_steps() as f64;
             Ok(Row {
                 case: case.name.clone(),
                 open_loop: o.stats(from),
                 closed_loop: c.stats(from),
+                transient: Some(c.transient(period_ticks, rate)),
             })
         })
         .collect()
@@ -488,9 +540,53 @@ fn read_csv(path: &Path) -> Result<Vec<Row>> {
             case: c[0].to_string(),
             open_loop: stats(f(1)?, f64::NAN, f64::NAN),
             closed_loop: stats(f(2)?, f(3)?, f(4)?),
+            transient: None,
         });
     }
     Ok(rows)
+}
+
+/// The learning transient as CSV (module docs).
+pub fn write_transient_csv(path: &Path, rows: &[Row]) -> Result<()> {
+    let mut text = String::from("case,whole_run_rms_pct,settled_rms_pct,settle_s,settle_cycles\n");
+    let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
+    for r in rows {
+        if let Some(t) = r.transient {
+            text += &format!(
+                "{},{:.4},{:.4},{},{}\n",
+                r.case,
+                t.whole_run_rms_pct,
+                r.closed_loop.rms_pct,
+                opt(t.settle_s),
+                opt(t.settle_cycles)
+            );
+        }
+    }
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The learning transient as text: whole run, settled window, time to settle below
+/// [`SETTLED_PCT`].
+pub fn transient_table(rows: &[Row], settle_window_s: f64) -> String {
+    let mut s = format!(
+        "learning transient (closed loop): {:<25} {:>13} {:>17} {:>22}\n",
+        "case",
+        "whole run RMS %",
+        format!("from {settle_window_s} s RMS %"),
+        format!("below {SETTLED_PCT} % from (s / cycles)")
+    );
+    for r in rows {
+        let Some(t) = r.transient else { continue };
+        let settle = match (t.settle_s, t.settle_cycles) {
+            (Some(s), Some(c)) => format!("{s:.3} s / {c:.1}"),
+            _ => "never".to_string(),
+        };
+        s += &format!(
+            "  {:<56} {:>13.3} {:>17.3} {:>22}\n",
+            r.case, t.whole_run_rms_pct, r.closed_loop.rms_pct, settle
+        );
+    }
+    s
 }
 
 /// The table as text.
@@ -602,6 +698,8 @@ pub fn run(args: &Args) -> Result<()> {
     )?;
     let csv = args.out.join("robustness.csv");
     write_csv(&csv, &rows)?;
+    let transient_csv = args.out.join("transient.csv");
+    write_transient_csv(&transient_csv, &rows)?;
     crate::plot::register_font()?;
     let pictures = plot(&args.out.join("robustness"), &rows)?;
     println!(
@@ -614,6 +712,7 @@ pub fn run(args: &Args) -> Result<()> {
         started.elapsed().as_secs_f64()
     );
     print!("{}", table(&rows));
+    print!("{}", transient_table(&rows, args.settle_s));
     let reference = matrix(
         &loaded,
         &[Case {
@@ -633,6 +732,7 @@ pub fn run(args: &Args) -> Result<()> {
     print!("{}", table(&reference).lines().nth(1).unwrap_or_default());
     println!();
     println!("wrote {}", csv.display());
+    println!("wrote {}", transient_csv.display());
     for p in pictures {
         println!("wrote {}", p.display());
     }
