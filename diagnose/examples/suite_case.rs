@@ -18,7 +18,7 @@ fn main() {
     )
     .unwrap();
     println!("{}", case.describe());
-    let o = blind::run_case(&params, case);
+    let o = blind::run_case(&params, &params, case);
     let d = &o.diagnosis;
     println!(
         "named {:?} correct {} ({:.1} s)\n{}",

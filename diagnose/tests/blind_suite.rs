@@ -12,7 +12,10 @@
 //!
 //! `BLIND_SEED` (default 1) and `BLIND_CASES` (default 32) choose another suite,
 //! `BLIND_DESIGN=varied` another experiment design per case (`maglab_plant::suite::Design`:
-//! frequencies, amplitudes, bias, rate and duration drawn too); the example
+//! frequencies, amplitudes, bias, rate and duration drawn too), `BLIND_RODS=families` every case
+//! on a rod of its own (`maglab_plant::rods`: the four families, planes 1× to 5× the coil's
+//! reach), diagnosed against the file `maglab identify` makes from that rod's effect-free
+//! standard dataset (no file of the model's form describes such a rod exactly); the example
 //! `cargo run --release -p maglab-diagnose --example blind_suite -- SEED COUNT` prints one
 //! without asserting.
 mod blind;

@@ -3,7 +3,8 @@
 //! to 5× wider than the coil reaches, other coercivity spreads), on the plant's own grid: the
 //! identification never sees it.
 //!
-//! The dataset is a bench's standard one on a rod it cannot saturate: a reversal sweep from 0 to
+//! The dataset is a bench's standard one on a rod it cannot saturate
+//! (`maglab_plant::bench::identification_design`): a reversal sweep from 0 to
 //! 1.4 A with ten nested reversals, biased sines 1–400 Hz at 0.3 and 0.6 A around 0.8 A, two Van
 //! der Pol currents; every experiment switched on from a demagnetized rod, not documented (the
 //! start is estimated), 20 nm of noise. `maglab identify` with the default base file must give
@@ -16,56 +17,10 @@
 //! `ROD_KEEP=1` keeps each dataset folder (printed) for `maglab identify` / `maglab diagnose`;
 //! `ROD_FIRST_SEED=n` numbers the rods' noise seeds from `n` (default 1).
 
-use maglab_dataset::StartState;
 use maglab_identify::experiments::ClassifyOptions;
 use maglab_identify::pipeline::{identify, Base, IdentifyOptions, RecordedDataset};
-use maglab_plant::bench::{self, BenchSettings, Experiment};
+use maglab_plant::bench::{self, BenchSettings};
 use maglab_plant::{Family, Plant, Rod};
-
-/// The bench's standard dataset (module docs).
-fn standard_design(rate_hz: f64) -> Vec<Experiment> {
-    let start = StartState::SwitchOnDemagnetized;
-    let mut out = vec![Experiment {
-        name: "00_reversals".into(),
-        start,
-        current_a: bench::reversal_sweep(0.0, 1.4, 10, 2.0, rate_hz),
-        description: "reversal sweep 0-1.4 A".into(),
-    }];
-    let mut index = 1;
-    for (freq_hz, duration_s) in [
-        (1.0, 3.0),
-        (20.0, 0.5),
-        (50.0, 0.5),
-        (100.0, 0.5),
-        (150.0, 0.5),
-        (200.0, 0.5),
-        (300.0, 0.5),
-        (400.0, 0.5),
-    ] {
-        for amplitude_a in [0.3, 0.6] {
-            out.push(bench::sine_experiment(
-                index,
-                start,
-                0.8,
-                amplitude_a,
-                freq_hz,
-                duration_s,
-                rate_hz,
-            ));
-            index += 1;
-        }
-    }
-    for freq_hz in [20.0, 100.0] {
-        out.push(Experiment {
-            name: format!("{index:02}_vdp_{freq_hz}hz"),
-            start,
-            current_a: bench::van_der_pol_current(0.8, 0.6, freq_hz, 1.0, 0.5, rate_hz),
-            description: format!("Van der Pol current {freq_hz} Hz, mu 1"),
-        });
-        index += 1;
-    }
-    out
-}
 
 /// One row of the table.
 struct Row {
@@ -84,8 +39,12 @@ fn identify_rod(rod: Rod, seed: u64) -> Row {
         ..BenchSettings::default()
     };
     let plant = Plant::with_rod(&params, &rod, &[], settings.rate_hz).expect("plant");
-    let recordings =
-        bench::record_all_on(plant, &standard_design(settings.rate_hz), &settings).expect("rig");
+    let recordings = bench::record_all_on(
+        plant,
+        &bench::identification_design(settings.rate_hz),
+        &settings,
+    )
+    .expect("rig");
     let dir = std::env::temp_dir().join(format!(
         "maglab-rod-{}-{}-{seed}",
         rod.label().replace(':', "-"),

@@ -258,6 +258,54 @@ pub fn sine_experiment(
     }
 }
 
+/// A bench's standard identification dataset, for a rod the coil may not saturate: a reversal
+/// sweep from 0 to 1.4 A with ten nested reversals, biased sines 1–400 Hz at 0.3 and 0.6 A
+/// around 0.8 A (the 1 Hz ones quasi-static data on the loops the fast ones run on), two Van der
+/// Pol currents; every experiment switched on from a demagnetized rod.
+pub fn identification_design(rate_hz: f64) -> Vec<Experiment> {
+    let start = StartState::SwitchOnDemagnetized;
+    let mut out = vec![Experiment {
+        name: "00_reversals".into(),
+        start,
+        current_a: reversal_sweep(0.0, 1.4, 10, 2.0, rate_hz),
+        description: "reversal sweep 0-1.4 A".into(),
+    }];
+    let mut index = 1;
+    for (freq_hz, duration_s) in [
+        (1.0, 3.0),
+        (20.0, 0.5),
+        (50.0, 0.5),
+        (100.0, 0.5),
+        (150.0, 0.5),
+        (200.0, 0.5),
+        (300.0, 0.5),
+        (400.0, 0.5),
+    ] {
+        for amplitude_a in [0.3, 0.6] {
+            out.push(sine_experiment(
+                index,
+                start,
+                0.8,
+                amplitude_a,
+                freq_hz,
+                duration_s,
+                rate_hz,
+            ));
+            index += 1;
+        }
+    }
+    for freq_hz in [20.0, 100.0] {
+        out.push(Experiment {
+            name: format!("{index:02}_vdp_{freq_hz}hz"),
+            start,
+            current_a: van_der_pol_current(0.8, 0.6, freq_hz, 1.0, 0.5, rate_hz),
+            description: format!("Van der Pol current {freq_hz} Hz, mu 1"),
+        });
+        index += 1;
+    }
+    out
+}
+
 /// Runs one experiment on `plant` (started as the experiment says).
 pub fn record(
     plant: &mut Plant,

@@ -30,8 +30,9 @@
 //! periods of the lowest frequency, and at most 2e5 samples in all where those allow it): a
 //! bench's own choice, which a diagnosis must not depend on.
 
-use crate::bench::{record, record_all, sine_experiment, BenchSettings, Experiment, Recording};
+use crate::bench::{record, record_all_on, sine_experiment, BenchSettings, Experiment, Recording};
 use crate::effects::{Effect, EFFECTS};
+use crate::rods::Rod;
 use actuator_params::ActuatorParams;
 use maglab_dataset::{CurrentBetweenSamples, StartState};
 use rand::{Rng, RngExt, SeedableRng};
@@ -129,6 +130,9 @@ pub struct Case {
     pub design: Design,
     /// The sweep in words (empty for [`Design::Standard`]).
     pub sweep: String,
+    /// The rod's own Preisach measure (`crate::rods`), when the case is drawn on one instead of
+    /// the parameter file's grid and masses ([`draw_on`]).
+    pub rod: Option<Rod>,
 }
 
 impl Case {
@@ -158,16 +162,39 @@ impl Case {
             self.settings.noise_m * 1e6,
             self.start.name(),
             if self.documented { " (documented)" } else { "" }
-        ) + &if self.sweep.is_empty() {
-            String::new()
-        } else {
-            format!("; {}", self.sweep)
-        }
+        ) + &self
+            .rod
+            .as_ref()
+            .map_or(String::new(), |r| format!("; rod {}", r.label()))
+            + &if self.sweep.is_empty() {
+                String::new()
+            } else {
+                format!("; {}", self.sweep)
+            }
     }
 
-    /// Records the case's dataset.
+    /// Records the case's dataset (on its rod when it has one).
     pub fn record(&self, params: &ActuatorParams) -> Result<Vec<Recording>, String> {
-        record_all(params, &self.effects, &self.experiments, &self.settings)
+        let plant = plant_for(
+            params,
+            self.rod.as_ref(),
+            &self.effects,
+            self.settings.rate_hz,
+        )?;
+        record_all_on(plant, &self.experiments, &self.settings)
+    }
+}
+
+/// The bench plant of `params` with `effects`, on `rod`'s own Preisach measure when given.
+fn plant_for(
+    params: &ActuatorParams,
+    rod: Option<&Rod>,
+    effects: &[Effect],
+    rate_hz: f64,
+) -> Result<crate::Plant, String> {
+    match rod {
+        Some(r) => crate::Plant::with_rod(params, r, effects, rate_hz),
+        None => crate::Plant::new(params, effects, rate_hz),
     }
 }
 
@@ -230,9 +257,11 @@ pub struct GapRuns {
 }
 
 impl GapRuns {
-    /// Runs `experiments` on a plant with `effects`, keeping the extreme-frequency ones.
+    /// Runs `experiments` on a plant with `effects` (on `rod` when given), keeping the
+    /// extreme-frequency ones.
     pub fn new(
         params: &ActuatorParams,
+        rod: Option<&Rod>,
         effects: &[Effect],
         experiments: &[Experiment],
         settings: &BenchSettings,
@@ -251,7 +280,7 @@ impl GapRuns {
         };
         let chained = experiments.iter().any(|e| e.start == StartState::Previous);
         let runs = if chained {
-            let mut plant = crate::Plant::new(params, effects, quiet.rate_hz)?;
+            let mut plant = plant_for(params, rod, effects, quiet.rate_hz)?;
             let mut out = Vec::new();
             for (e, &f) in experiments.iter().zip(&freqs) {
                 let r = record(&mut plant, e, &quiet, 0)?;
@@ -266,7 +295,7 @@ impl GapRuns {
                 .zip(&freqs)
                 .filter(|(_, &f)| keep(f))
                 .map(|(e, &f)| {
-                    let mut plant = crate::Plant::new(params, effects, quiet.rate_hz)?;
+                    let mut plant = plant_for(params, rod, effects, quiet.rate_hz)?;
                     Ok((record(&mut plant, e, &quiet, 0)?, f >= 0.999 * top))
                 })
                 .collect::<Result<Vec<_>, String>>()?
@@ -351,8 +380,8 @@ pub fn gap(
     experiments: &[Experiment],
     settings: &BenchSettings,
 ) -> Result<f64, String> {
-    let with = GapRuns::new(params, effects, experiments, settings)?;
-    let without = GapRuns::new(params, &[], experiments, settings)?;
+    let with = GapRuns::new(params, None, effects, experiments, settings)?;
+    let without = GapRuns::new(params, None, &[], experiments, settings)?;
     Ok(gap_between(&with, &without))
 }
 
@@ -376,6 +405,7 @@ fn frequency_of(description: &str) -> f64 {
 /// run once by the caller for every effect and draw of a case.
 pub fn calibrate(
     params: &ActuatorParams,
+    rod: Option<&Rod>,
     effect: &Effect,
     target: f64,
     experiments: &[Experiment],
@@ -402,7 +432,7 @@ pub fn calibrate(
     };
     let gap_at = |m: f64| -> Result<(Effect, f64), String> {
         let e = with_magnitude(effect, m)?;
-        let with = GapRuns::new(params, std::slice::from_ref(&e), experiments, settings)?;
+        let with = GapRuns::new(params, rod, std::slice::from_ref(&e), experiments, settings)?;
         Ok((e, gap_between(&with, without)))
     };
     let toward_big = |m: f64| {
@@ -526,6 +556,18 @@ pub fn draw_with(
     kind: Kind,
     design: Design,
 ) -> Result<Case, String> {
+    draw_on(params, None, seed, kind, design)
+}
+
+/// [`draw_with`] on `rod`'s own Preisach measure (the parameter file's constants, the rod's
+/// measure on the plant's grid: `crate::rods`); the effects are calibrated on that plant.
+pub fn draw_on(
+    params: &ActuatorParams,
+    rod: Option<&Rod>,
+    seed: u64,
+    kind: Kind,
+    design: Design,
+) -> Result<Case, String> {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let varied = (design == Design::Varied).then(|| varied_design(seed));
     let settings = BenchSettings {
@@ -603,7 +645,7 @@ pub fn draw_with(
     let without = if names.is_empty() {
         GapRuns { runs: Vec::new() }
     } else {
-        GapRuns::new(params, &[], &experiments, &settings)?
+        GapRuns::new(params, rod, &[], &experiments, &settings)?
     };
     for name in names {
         let target = log_uniform(&mut rng, lo, hi);
@@ -612,7 +654,7 @@ pub fn draw_with(
         let mut result: Option<(Effect, f64)> = None;
         for _ in 0..8 {
             let e = shaped(name, &mut rng)?;
-            let (e, g) = calibrate(params, &e, target, &experiments, &settings, &without)?;
+            let (e, g) = calibrate(params, rod, &e, target, &experiments, &settings, &without)?;
             let reached = g >= 0.9 * target;
             if result.as_ref().is_none_or(|(_, best)| g > *best) {
                 result = Some((e, g));
@@ -651,6 +693,7 @@ pub fn draw_with(
         experiments,
         design,
         sweep,
+        rod: rod.cloned(),
     })
 }
 

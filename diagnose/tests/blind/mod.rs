@@ -17,9 +17,15 @@ pub struct Outcome {
     pub diagnosis: Diagnosis,
 }
 
-/// Diagnoses one case.
-pub fn run_case(params: &actuator_params::ActuatorParams, case: Case) -> Outcome {
-    let recordings = case.record(params).expect("the plant runs");
+/// Diagnoses one case recorded on a plant of `plant_params` (and the case's rod, if any) against
+/// the `nominal` file.
+pub fn run_case(
+    plant_params: &actuator_params::ActuatorParams,
+    nominal: &actuator_params::ActuatorParams,
+    case: Case,
+) -> Outcome {
+    let params = nominal;
+    let recordings = case.record(plant_params).expect("the plant runs");
     let rate = case.settings.rate_hz;
     let measurements: Vec<Measurement> = recordings
         .iter()
@@ -75,11 +81,77 @@ pub fn design_from_env() -> suite::Design {
     suite::Design::from_env("BLIND_DESIGN").unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// The rod of case `i` in the rod mode (`BLIND_RODS=families`): the four families in turn, their
+/// planes 1× to 5× the coil's reach (`maglab_plant::rods`), default coercivity and spread.
+pub fn rod_of_case(i: usize) -> maglab_plant::Rod {
+    let (_, family) = maglab_plant::Family::NAMES[i % 4];
+    maglab_plant::Rod::new(family, (1 + (i / 4) % 5) as f64)
+}
+
+/// Whether `BLIND_RODS=families` asks for the rod mode: each case on a rod of its own
+/// ([`rod_of_case`]), diagnosed against the file `maglab identify` makes from that rod's
+/// effect-free standard dataset (`maglab_plant::bench::identification_design`, 20 nm of noise):
+/// the nominal file a bench could have, since no file of the model's form describes such a rod
+/// exactly.
+pub fn rods_from_env() -> bool {
+    match std::env::var("BLIND_RODS").as_deref() {
+        Err(_) | Ok("") | Ok("off") => false,
+        Ok("families") => true,
+        Ok(other) => panic!("BLIND_RODS `{other}`: expected `families` or `off`"),
+    }
+}
+
+/// The nominal file of `rod`: identified from its effect-free standard dataset.
+pub fn identified_nominal(
+    params: &actuator_params::ActuatorParams,
+    rod: &maglab_plant::Rod,
+) -> actuator_params::ActuatorParams {
+    use maglab_identify::experiments::ClassifyOptions;
+    use maglab_identify::pipeline::{identify, Base, IdentifyOptions, RecordedDataset};
+    use maglab_plant::bench::{self, BenchSettings};
+    let settings = BenchSettings {
+        noise_m: 20e-9,
+        ..BenchSettings::default()
+    };
+    let plant = maglab_plant::Plant::with_rod(params, rod, &[], settings.rate_hz).expect("plant");
+    let recordings = bench::record_all_on(
+        plant,
+        &bench::identification_design(settings.rate_hz),
+        &settings,
+    )
+    .expect("the rod's standard dataset");
+    let dir = std::env::temp_dir().join(format!(
+        "maglab-blind-rod-{}-{}",
+        rod.label().replace(':', "-"),
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    bench::write_dataset(&dir, &recordings).expect("write");
+    let dataset = RecordedDataset::load(&dir, &ClassifyOptions::default()).expect("load");
+    let identified = identify(
+        &dataset,
+        Base {
+            params,
+            name: "default parameters",
+        },
+        &IdentifyOptions::default(),
+        &|_, _, _| {},
+    )
+    .expect("the rod is identified");
+    let _ = std::fs::remove_dir_all(&dir);
+    identified.params
+}
+
 /// The suite of `count` cases from `seed`, drawn and diagnosed on all cores (each case is
 /// independent; the outcomes come back in case order), in the design of [`design_from_env`].
 pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
     let params = actuator_params::paper_defaults();
     let design = design_from_env();
+    let rods = rods_from_env();
+    // One identification per distinct rod (the cases of a rod share its nominal file).
+    let nominals: std::sync::Mutex<
+        std::collections::HashMap<String, std::sync::Arc<actuator_params::ActuatorParams>>,
+    > = Default::default();
     let kinds = suite::kinds(seed, count);
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
@@ -94,14 +166,30 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let Some(kind) = kinds.get(i) else { break };
-                let case = suite::draw_with(
+                let rod = rods.then(|| rod_of_case(i));
+                let case = suite::draw_on(
                     &params,
+                    rod.as_ref(),
                     seed.wrapping_mul(1000).wrapping_add(i as u64),
                     kind.clone(),
                     design,
                 )
                 .expect("the case is drawn");
-                let o = run_case(&params, case);
+                let nominal = match &rod {
+                    None => std::sync::Arc::new(params.clone()),
+                    Some(r) => {
+                        let cached = nominals.lock().expect("no thread panicked").get(&r.label()).cloned();
+                        cached.unwrap_or_else(|| {
+                            let n = std::sync::Arc::new(identified_nominal(&params, r));
+                            nominals
+                                .lock()
+                                .expect("no thread panicked")
+                                .insert(r.label(), n.clone());
+                            n
+                        })
+                    }
+                };
+                let o = run_case(&params, &nominal, case);
                 if verbose {
                     // The gap left by the best single candidate (also in units of the noise σ:
                     // the second stage's trigger) and by the best pair, % of the refitted
