@@ -77,20 +77,20 @@ pub use firmware::*;
 
 #[cfg(target_os = "none")]
 mod firmware {
-    use core::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, AtomicU8, Ordering};
+    use core::sync::atomic::{AtomicU32, Ordering};
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
     use magctl::board::command_line::{ArgError, CommandLine};
     use magctl::board::handoff::HandOff;
     use magctl::board::mps2_an386::uart::{CmsdkUart, UART0_BASE};
     use magctl::board::mps2_an386::{take_dac, Dac, Timer0Irq};
     use magctl::board::semihosting;
+    use magctl::board::tick_mailbox::TickMailbox;
     use magctl::inverse::{
         CommandFlags, Conditioning, ConditioningState, ControlLoop, InverseKind, LoopState,
     };
     use magctl::link::{
         CommandFrame, EndAck, EndAckWatch, ProgrammeFrame, Sample, SampleAssembler, SampleFrame,
-        KIND_BEGIN, KIND_COMMAND, KIND_END, KIND_SAMPLE_COUNT, KIND_SAMPLE_METRES,
-        SAMPLE_FRAME_BYTES,
+        KIND_BEGIN, KIND_END, SAMPLE_FRAME_BYTES,
     };
     use magctl::output::{CurrentOutput, DacScale};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
@@ -133,18 +133,10 @@ mod firmware {
 
     static APP: HandOff<App> = HandOff::new();
 
-    /// The sample of the coming tick (thread mode → interrupt): kind byte (0 = missing) and the
-    /// payload's bits.
-    static SAMPLE_KIND: AtomicU8 = AtomicU8::new(0);
-    static SAMPLE_BITS: AtomicU32 = AtomicU32::new(0);
+    /// The tick in flight between thread mode and the interrupt (`magctl::board::tick_mailbox`).
+    static MAILBOX: TickMailbox = TickMailbox::new();
     /// The programme's current of the coming tick (measurement mode), f32 bits.
     static PROGRAMME_BITS: AtomicU32 = AtomicU32::new(0);
-    /// The command of the last tick (interrupt → thread mode).
-    static OUT_CURRENT_BITS: AtomicU32 = AtomicU32::new(0);
-    static OUT_DESIRED_BITS: AtomicU32 = AtomicU32::new(0);
-    static OUT_FLAGS: AtomicU8 = AtomicU8::new(0);
-    static OUT_INSTRUCTIONS: AtomicU16 = AtomicU16::new(0);
-    static OUT_READY: AtomicBool = AtomicBool::new(false);
 
     /// The control interrupt (TIMER0's vector, IRQ 8, pended by the link when a sample arrived).
     ///
@@ -163,14 +155,13 @@ mod firmware {
         let Some(app) = (unsafe { APP.get_mut() }) else {
             return;
         };
-        let bits = SAMPLE_BITS.load(Ordering::Relaxed);
         let sensor = app.control.sensor();
-        let kind = SAMPLE_KIND.load(Ordering::Acquire);
+        let sample = MAILBOX.sample();
         let out = if app.measure {
-            let reading = match kind {
-                KIND_SAMPLE_COUNT => sensor.reading_m(bits),
-                KIND_SAMPLE_METRES => Ok(f32::from_bits(bits)),
-                _ => Err(SensorFault::Missing),
+            let reading = match sample {
+                Some(Sample::Count(c)) => sensor.reading_m(c),
+                Some(Sample::Metres(m)) => Ok(m),
+                None => Err(SensorFault::Missing),
             };
             match &mut app.recorder {
                 Some(recorder) => recorder.tick(&app.control, &mut app.state, reading),
@@ -181,7 +172,7 @@ mod firmware {
                 }
             }
         } else {
-            tracking_tick(app, kind, bits)
+            tracking_tick(app, sample)
         };
         if app.dac.write_current(out.current_a).is_err() {
             app.spi_timeouts = app.spi_timeouts.saturating_add(1);
@@ -190,21 +181,17 @@ mod firmware {
         let ticks = entry.wrapping_sub(exit) & 0x00FF_FFFF;
         // SysTick ticks per instruction = 25.6 = 128 / 5 under `-icount shift=10`.
         let instructions = (ticks * 5 / 128).min(u16::MAX as u32) as u16;
-        OUT_CURRENT_BITS.store(out.current_a.to_bits(), Ordering::Relaxed);
-        OUT_DESIRED_BITS.store(out.desired.displacement_m.to_bits(), Ordering::Relaxed);
-        OUT_FLAGS.store(out.flags.0, Ordering::Relaxed);
-        OUT_INSTRUCTIONS.store(instructions, Ordering::Relaxed);
-        OUT_READY.store(true, Ordering::Release);
+        MAILBOX.post_command(&out, instructions);
     }
 
-    /// One tracking tick (conditioning first while it runs) on the sample of kind `kind`.
+    /// One tracking tick (conditioning first while it runs) on `sample`.
     #[inline(always)]
-    fn tracking_tick(app: &mut App, kind: u8, bits: u32) -> magctl::inverse::TickOutput {
+    fn tracking_tick(app: &mut App, sample: Option<Sample>) -> magctl::inverse::TickOutput {
         let sensor = app.control.sensor();
-        let sample = match kind {
-            KIND_SAMPLE_COUNT => sensor.displacement_m(bits),
-            KIND_SAMPLE_METRES => sensor.check_m(f32::from_bits(bits)),
-            _ => Err(SensorFault::Missing),
+        let sample = match sample {
+            Some(Sample::Count(c)) => sensor.displacement_m(c),
+            Some(Sample::Metres(m)) => sensor.check_m(m),
+            None => Err(SensorFault::Missing),
         };
         match &mut app.conditioning {
             Some((c, seq)) if !seq.done() => {
@@ -244,30 +231,12 @@ mod firmware {
 
     /// Runs one control interrupt on `sample` and returns its command frame.
     fn run_tick(sample: Option<Sample>, seq: u16) -> Option<CommandFrame> {
-        let (kind, bits) = match sample {
-            Some(Sample::Count(c)) => (KIND_SAMPLE_COUNT, c),
-            Some(Sample::Metres(m)) => (KIND_SAMPLE_METRES, m.to_bits()),
-            None => (0, 0),
-        };
-        SAMPLE_BITS.store(bits, Ordering::Relaxed);
-        SAMPLE_KIND.store(kind, Ordering::Release);
-        OUT_READY.store(false, Ordering::Relaxed);
+        MAILBOX.post_sample(sample);
         NVIC::pend(Timer0Irq);
         // The pended interrupt preempts thread mode at once; these barriers make sure it has run.
         cortex_m::asm::dsb();
         cortex_m::asm::isb();
-        if !OUT_READY.load(Ordering::Acquire) {
-            return None;
-        }
-        Some(CommandFrame {
-            kind: KIND_COMMAND,
-            seq,
-            value: f32::from_bits(OUT_CURRENT_BITS.load(Ordering::Relaxed)),
-            desired_m: f32::from_bits(OUT_DESIRED_BITS.load(Ordering::Relaxed)),
-            flags: OUT_FLAGS.load(Ordering::Relaxed),
-            aux: OUT_INSTRUCTIONS.load(Ordering::Relaxed),
-            aux32: 0,
-        })
+        MAILBOX.command(seq)
     }
 
     /// What the command line asks for (`ticks=N mode=track|measure|measure-local

@@ -274,13 +274,10 @@ mod firmware {
     /// handling are the board's.
     #[cfg(feature = "emulator-netduinoplus2")]
     mod bench {
-        use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering};
         use magctl::board::nucleo_f446re::emulator::PlantLink;
+        use magctl::board::tick_mailbox::TickMailbox;
         use magctl::inverse::{CommandFlags, ControlLoop, TickOutput};
-        use magctl::link::{
-            CommandFrame, EndAck, Sample, KIND_BEGIN, KIND_COMMAND, KIND_END, KIND_SAMPLE_COUNT,
-            KIND_SAMPLE_METRES,
-        };
+        use magctl::link::{CommandFrame, EndAck, Sample, KIND_BEGIN, KIND_END};
         use magctl::sensor::SensorFault;
         use stm32f4::stm32f446::{Interrupt, NVIC};
 
@@ -293,61 +290,35 @@ mod firmware {
         /// after a fault's ramp).
         const EXIT_CHECK_FAILED: u32 = 3;
 
-        /// The sample of the coming tick (thread mode → interrupt): kind byte (0 = missing) and
-        /// payload bits.
-        static SAMPLE_KIND: AtomicU8 = AtomicU8::new(0);
-        static SAMPLE_BITS: AtomicU32 = AtomicU32::new(0);
-        /// The command of the last tick (interrupt → thread mode).
-        static OUT_CURRENT_BITS: AtomicU32 = AtomicU32::new(0);
-        static OUT_DESIRED_BITS: AtomicU32 = AtomicU32::new(0);
-        static OUT_FLAGS: AtomicU8 = AtomicU8::new(0);
-        static OUT_READY: AtomicBool = AtomicBool::new(false);
+        /// The tick in flight between thread mode and the interrupt.
+        static MAILBOX: TickMailbox = TickMailbox::new();
 
         /// The interrupt's side: the tick's sample, scaled and checked.
         #[inline(always)]
         pub fn take_sample(control: &ControlLoop<'static>) -> Result<f32, SensorFault> {
-            let bits = SAMPLE_BITS.load(Ordering::Relaxed);
             let sensor = control.sensor();
-            match SAMPLE_KIND.load(Ordering::Acquire) {
-                KIND_SAMPLE_COUNT => sensor.displacement_m(bits),
-                KIND_SAMPLE_METRES => sensor.check_m(f32::from_bits(bits)),
-                _ => Err(SensorFault::Missing),
+            match MAILBOX.sample() {
+                Some(Sample::Count(c)) => sensor.displacement_m(c),
+                Some(Sample::Metres(m)) => sensor.check_m(m),
+                None => Err(SensorFault::Missing),
             }
         }
 
-        /// The interrupt's side: the tick's command, for the link.
+        /// The interrupt's side: the tick's command, for the link (no instruction count here).
         #[inline(always)]
         pub fn put_command(out: &TickOutput) {
-            OUT_CURRENT_BITS.store(out.current_a.to_bits(), Ordering::Relaxed);
-            OUT_DESIRED_BITS.store(out.desired.displacement_m.to_bits(), Ordering::Relaxed);
-            OUT_FLAGS.store(out.flags.0, Ordering::Relaxed);
-            OUT_READY.store(true, Ordering::Release);
+            MAILBOX.post_command(out, 0);
         }
 
         /// Pends the control interrupt on `sample` and returns its command frame for `tick`
         /// (`None` if the interrupt did not run).
         fn run_tick(sample: Option<Sample>, tick: u32) -> Option<CommandFrame> {
-            let (kind, bits) = match sample {
-                Some(Sample::Count(c)) => (KIND_SAMPLE_COUNT, c),
-                Some(Sample::Metres(m)) => (KIND_SAMPLE_METRES, m.to_bits()),
-                None => (0, 0),
-            };
-            SAMPLE_BITS.store(bits, Ordering::Relaxed);
-            SAMPLE_KIND.store(kind, Ordering::Release);
-            OUT_READY.store(false, Ordering::Relaxed);
+            MAILBOX.post_sample(sample);
             NVIC::pend(Interrupt::TIM2);
             // The pended interrupt preempts thread mode at once; the barriers make sure it ran.
             cortex_m::asm::dsb();
             cortex_m::asm::isb();
-            OUT_READY.load(Ordering::Acquire).then(|| CommandFrame {
-                kind: KIND_COMMAND,
-                seq: tick as u16,
-                value: f32::from_bits(OUT_CURRENT_BITS.load(Ordering::Relaxed)),
-                desired_m: f32::from_bits(OUT_DESIRED_BITS.load(Ordering::Relaxed)),
-                flags: OUT_FLAGS.load(Ordering::Relaxed),
-                aux: 0,
-                aux32: 0,
-            })
+            MAILBOX.command(tick as u16)
         }
 
         /// The lock-step run: `B`, then per tick the plant's sample, the interrupt, the command

@@ -1,6 +1,6 @@
 //! Board support for the firmware. The two boards are behind their features (and only make sense
 //! for `target_os = "none"`); [`polled_spi`], [`handoff`], [`capture_phase`] and
-//! [`command_line`] are board-independent and tested on the host.
+//! [`command_line`] and [`tick_mailbox`] are board-independent and tested on the host.
 //!
 //! * [`mps2_an386`] (feature `board-mps2-an386`): QEMU's `mps2-an386` (Cortex-M4F, 25 MHz):
 //!   CMSDK TIMER0 (IRQ 8) as the control timer, TIMER1 and SysTick for measurement, a PL022 SPI
@@ -28,3 +28,4 @@ pub mod polled_spi;
 pub mod semihosting;
 #[cfg(target_os = "none")]
 pub mod stack;
+pub mod tick_mailbox;

@@ -498,12 +498,7 @@ pub fn run_once(
     print!("{s}");
     s.push_str(&b.link_report);
     std::fs::write(out_abs.join("summary.txt"), &s)?;
-    ensure!(
-        b.exit == run.expect_exit,
-        "firmware exit status {}, expected {}",
-        b.exit,
-        run.expect_exit
-    );
+    expect_exit(run, &b)?;
     Ok(HilResult {
         commands,
         tracking,
@@ -512,6 +507,17 @@ pub fn run_once(
         frames: b.rows.iter().filter_map(|r| r.command).collect(),
         instructions: instr,
     })
+}
+
+/// The run ended with the exit status it expects.
+fn expect_exit(run: &HilRun, b: &Bridged) -> Result<()> {
+    ensure!(
+        b.exit == run.expect_exit,
+        "firmware exit status {}, expected {}",
+        b.exit,
+        run.expect_exit
+    );
+    Ok(())
 }
 
 /// A run that ended before its first tick (a start-up halt the run expects): its exit status is
@@ -523,12 +529,7 @@ fn halted_before_first_tick(run: &HilRun, b: &Bridged, out: &Path) -> Result<Hil
     );
     print!("{s}");
     std::fs::write(out.join("summary.txt"), &s)?;
-    ensure!(
-        b.exit == run.expect_exit,
-        "firmware exit status {}, expected {}",
-        b.exit,
-        run.expect_exit
-    );
+    expect_exit(run, b)?;
     Ok(HilResult {
         commands: 0,
         tracking: None,
