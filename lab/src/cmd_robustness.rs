@@ -75,6 +75,9 @@ pub struct Args {
     /// Use the static inverse (Figure 8) instead of the dynamic one.
     #[arg(long)]
     pub static_inverse: bool,
+    /// Without the stroke-gain estimate (`magctl::inverse::StrokeGainLaw`): the learning alone.
+    #[arg(long)]
+    pub no_stroke_gain: bool,
     /// Output directory.
     #[arg(long, default_value = "out/robustness")]
     pub out: PathBuf,
@@ -247,27 +250,36 @@ pub fn run_case(
     let mut plant = Plant::new(&case.plant, &case.effects, rate)
         .map_err(|e| anyhow::anyhow!("{}: {e}", case.name))?;
     let mut state: LoopState<{ magctl::preisach::DEFAULT_CAPACITY }> = control.init(kind);
-    let d0 = control.trajectory().motion(&state.core.trajectory);
+    // As the firmware starts: the rod demagnetized at 0 A, then the start-up conditioning
+    // (`magctl::inverse::Conditioning`) with the sensor read, up to the loop's first current.
     plant
-        .start(
-            StartState::NegativeSaturation,
-            state.core.last_current_a as f64,
-        )
+        .start(StartState::SwitchOnDemagnetized, 0.0)
         .map_err(|e| anyhow::anyhow!(e))?;
-    plant.set_motion(d0.displacement_m as f64, d0.velocity_m_per_s as f64);
     let scale = SensorScale::new(&controller.sensor);
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let noise = Normal::new(0.0, case.noise_m.max(f64::MIN_POSITIVE))
         .map_err(|e| anyhow::anyhow!("noise: {e}"))?;
-    let mut trace = Trace::default();
     // The sensor's documented conversion delay (`sensor.sample_delay_s` of the plant's file).
     let delay_s = case.plant.sensor.sample_delay_s;
-    for _ in 0..ticks {
+    let read = |plant: &Plant, rng: &mut rand::rngs::StdRng| {
         let mut y = plant.sensor_at(plant.time_s() - delay_s);
         if case.noise_m > 0.0 {
-            y += noise.sample(&mut rng);
+            y += noise.sample(rng);
         }
-        let sample = scale.displacement_m(scale.count_of(y as f32));
+        scale.displacement_m(scale.count_of(y as f32))
+    };
+    let conditioning = *control.conditioning();
+    let mut sequence = control.conditioning_sequence(0.0, &state);
+    while !sequence.done() {
+        let sample = read(&plant, &mut rng);
+        let out = control.condition_sensed(kind, &conditioning, &mut sequence, &mut state, sample);
+        let i = out.current_a as f64;
+        plant.advance(i, i);
+        plant.trim_history(0.01);
+    }
+    let mut trace = Trace::default();
+    for _ in 0..ticks {
+        let sample = read(&plant, &mut rng);
         let out = control.tick_sensed(kind, &mut state, sample);
         let i = out.current_a as f64;
         plant.advance(i, i);
@@ -398,6 +410,7 @@ pub fn matrix(
     cases: &[Case],
     feedback: &Feedback,
     kind: InverseKind,
+    stroke_gain: bool,
     duration_s: f64,
     settle_s: f64,
     seed: u64,
@@ -424,8 +437,14 @@ pub fn matrix(
             let loop_for = |f: &Feedback| -> Result<ControlLoop<'_>> {
                 let mut with = params;
                 with.control.feedback = *f;
-                ControlLoop::new(&measure, &with)
-                    .map_err(|e| anyhow::anyhow!("{}: invalid control settings: {e:?}", case.name))
+                let control = ControlLoop::new(&measure, &with).map_err(|e| {
+                    anyhow::anyhow!("{}: invalid control settings: {e:?}", case.name)
+                })?;
+                Ok(if stroke_gain {
+                    control
+                } else {
+                    control.without_stroke_gain()
+                })
             };
             let mut off = *feedback;
             off.structure = magctl::params::FeedbackStructure::Off;
@@ -691,6 +710,7 @@ pub fn run(args: &Args) -> Result<()> {
         &all,
         &feedback,
         kind,
+        !args.no_stroke_gain,
         args.duration_s,
         args.settle_s,
         args.seed,
@@ -724,6 +744,7 @@ pub fn run(args: &Args) -> Result<()> {
         }],
         &feedback,
         kind,
+        !args.no_stroke_gain,
         args.duration_s,
         args.settle_s,
         args.seed,

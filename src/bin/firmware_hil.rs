@@ -195,7 +195,8 @@ mod firmware {
         };
         match &mut app.conditioning {
             Some((c, seq)) if !seq.done() => {
-                app.control.condition_sensed(c, seq, &mut app.state, sample)
+                app.control
+                    .condition_sensed(app.kind, c, seq, &mut app.state, sample)
             }
             _ => app.control.tick_sensed(app.kind, &mut app.state, sample),
         }
@@ -394,12 +395,11 @@ mod firmware {
         // of a rod the coil cannot saturate (never refused).
         let conditioning = if condition {
             let c = *control.conditioning();
-            Some((c, c.start(0.0, state.core.last_current_a)))
+            Some((c, control.conditioning_sequence(0.0, &state)))
         } else {
             None
         };
-        let conditioning_ticks =
-            conditioning.map_or(0, |(c, _)| c.ticks(0.0, state.core.last_current_a));
+        let conditioning_ticks = conditioning.map_or(0, |(c, seq)| c.remaining_ticks(&seq));
         let mut ticks = tracking_ticks.saturating_add(conditioning_ticks);
         let mut drain = None;
         let recorder = if local {

@@ -197,7 +197,8 @@ mod firmware {
             if seq.done() {
                 app.control.tick_sensed(INVERSE, &mut app.state, sample)
             } else {
-                app.control.condition_sensed(c, seq, &mut app.state, sample)
+                app.control
+                    .condition_sensed(INVERSE, c, seq, &mut app.state, sample)
             }
         };
         // Measurement image: the programme's current; the reading is checked only against the
@@ -558,14 +559,14 @@ mod firmware {
         #[cfg(not(feature = "measurement-mode"))]
         let conditioning = {
             let c = *control.conditioning();
-            (c, c.start(0.0, state.core.last_current_a))
+            (c, control.conditioning_sequence(0.0, &state))
         };
         #[cfg(feature = "emulator-netduinoplus2")]
         let (link, ticks, ramp_ticks) = {
-            let (c, _) = conditioning;
+            let (c, seq) = conditioning;
             let l = control.limiter();
             let ramp_ticks = libm::ceilf(l.limit_a() / l.max_step_a()) as u32 + 2;
-            let ticks = tracking_ticks.saturating_add(c.ticks(0.0, state.core.last_current_a));
+            let ticks = tracking_ticks.saturating_add(c.remaining_ticks(&seq));
             defmt::info!(
                 "firmware-nucleo (emulator): {=u32} ticks at {=f32} Hz, lock-step over USART2",
                 ticks,

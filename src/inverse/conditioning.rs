@@ -20,6 +20,11 @@
 //!
 //! Neither refuses to run: a rod the coil cannot saturate gets the reach sweep.
 //!
+//! With the feedback on, [`Conditioning::with_retarget`] appends a correction of the first
+//! current: one hold while the controller moves its target by the stroke gain measured on the
+//! hold ([`super::StrokeGainLaw`]), a ramp there in a fixed [`Conditioning::reramp_ticks`], and
+//! another hold; the sequence's length does not depend on the correction.
+//!
 //! The ramps are slow ([`RAMP_FULL_SCALE_S`] for 0 → I_max, never faster than the slew limit)
 //! so the eddy-current lag of (4) leaves the field within a small fraction of `c0·I`, and the
 //! holds ([`HOLD_S`]) let the field and the rod settle.
@@ -58,6 +63,7 @@ pub enum Sweep {
 pub struct Conditioning {
     sweep: Sweep,
     coil_factor_per_m: f32,
+    limit_a: f32,
     step_a: f32,
     hold_ticks: u32,
 }
@@ -83,6 +89,8 @@ enum Phase {
     HoldLow,
     ToTarget,
     HoldTarget,
+    Retarget,
+    Reramp,
     Done,
 }
 
@@ -93,6 +101,22 @@ pub struct ConditioningState {
     current_a: f32,
     target_a: f32,
     ticks_left: u32,
+    /// After the first hold at the target the sequence waits for a corrected target
+    /// ([`ConditioningState::retarget`]) and goes there; set once that has happened.
+    retarget: RetargetStep,
+    /// Step of the ramp to the corrected target, A per tick.
+    reramp_step_a: f32,
+}
+
+/// Whether the sequence goes to a corrected first current after its first hold there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RetargetStep {
+    /// No: the first hold ends the sequence.
+    Never,
+    /// Yes, not yet done.
+    Pending,
+    /// Done: the next hold at the target ends the sequence.
+    Done,
 }
 
 impl ConditioningState {
@@ -108,6 +132,31 @@ impl ConditioningState {
     /// Whether the sequence has ended (tracking may start).
     pub fn done(&self) -> bool {
         self.phase == Phase::Done
+    }
+
+    /// Whether the sequence is in the second half of its last hold, at the controller's first
+    /// current: the rod has come to rest there (the stroke gain's first samples,
+    /// [`super::StrokeGainLaw::observe_at_rest`]).
+    pub fn at_rest_on_first_current(&self, hold_ticks: u32) -> bool {
+        self.phase == Phase::HoldTarget && self.ticks_left <= hold_ticks / 2
+    }
+
+    /// Whether the sequence waits for a corrected first current ([`Conditioning::with_retarget`])
+    /// and has not been given one yet.
+    pub fn retargeting(&self) -> bool {
+        self.phase == Phase::Retarget && self.retarget == RetargetStep::Pending
+    }
+
+    /// Sets the corrected first current `target_a` (A) while [`ConditioningState::retargeting`]
+    /// (the field the controller's memory has reached; `arrived`: it is the final one, stop
+    /// asking). When the wait ends the sequence ramps there and holds, then ends.
+    pub fn retarget(&mut self, target_a: f32, arrived: bool) {
+        if self.phase == Phase::Retarget && target_a.is_finite() {
+            self.target_a = target_a;
+            if arrived {
+                self.retarget = RetargetStep::Done;
+            }
+        }
     }
 
     /// The current the sequence commands now, A.
@@ -163,9 +212,15 @@ impl Conditioning {
         Ok(Conditioning {
             sweep,
             coil_factor_per_m,
+            limit_a,
             step_a,
             hold_ticks: (HOLD_S * sample_rate_hz) as u32 + 1,
         })
+    }
+
+    /// Ticks of each hold.
+    pub fn hold_ticks(&self) -> u32 {
+        self.hold_ticks
     }
 
     /// The sequence the parameters called for.
@@ -194,12 +249,37 @@ impl Conditioning {
             current_a: if from_a.is_finite() { from_a } else { 0.0 },
             target_a,
             ticks_left: 1,
+            retarget: RetargetStep::Never,
+            reramp_step_a: 0.0,
         }
+    }
+
+    /// A sequence like [`Conditioning::start`] that, after its hold at `target_a`, waits one hold
+    /// for a corrected first current ([`ConditioningState::retarget`]; without one it keeps
+    /// `target_a`), ramps to it in a fixed [`Conditioning::reramp_ticks`] (never faster than the
+    /// sequence's own ramps, whatever the correction, so the length of the sequence does not
+    /// depend on it) and holds again.
+    pub fn with_retarget(&self, from_a: f32, target_a: f32) -> ConditioningState {
+        ConditioningState {
+            retarget: RetargetStep::Pending,
+            ..self.start(from_a, target_a)
+        }
+    }
+
+    /// Ticks of the ramp to a corrected first current: the time to cross twice the current limit
+    /// at the sequence's ramp rate.
+    pub fn reramp_ticks(&self) -> u32 {
+        (2.0 * self.limit_a / self.step_a) as u32 + 1
     }
 
     /// Ticks the whole sequence takes from `from_a` to `target_a` (for a run's tick budget).
     pub fn ticks(&self, from_a: f32, target_a: f32) -> u32 {
-        let mut s = self.start(from_a, target_a);
+        self.remaining_ticks(&self.start(from_a, target_a))
+    }
+
+    /// Ticks the sequence `s` still takes (the same whatever target a retarget sets).
+    pub fn remaining_ticks(&self, s: &ConditioningState) -> u32 {
+        let mut s = *s;
         let mut n = 0u32;
         while !s.done() && n < u32::MAX {
             self.step(&mut s);
@@ -242,7 +322,32 @@ impl Conditioning {
                     s.ticks_left = self.hold_ticks;
                 }
             }
-            Phase::HoldTarget => s.count_down_to(Phase::Done),
+            Phase::HoldTarget => {
+                if s.retarget == RetargetStep::Pending {
+                    s.count_down_to(Phase::Retarget);
+                    if s.phase == Phase::Retarget {
+                        s.ticks_left = self.hold_ticks;
+                    }
+                } else {
+                    s.count_down_to(Phase::Done);
+                }
+            }
+            Phase::Retarget => {
+                s.count_down_to(Phase::Reramp);
+                if s.phase == Phase::Reramp {
+                    s.retarget = RetargetStep::Done;
+                    s.ticks_left = self.reramp_ticks();
+                    s.reramp_step_a = (s.target_a - s.current_a) / s.ticks_left as f32;
+                }
+            }
+            Phase::Reramp => {
+                s.current_a += s.reramp_step_a;
+                s.count_down_to(Phase::HoldTarget);
+                if s.phase == Phase::HoldTarget {
+                    s.current_a = s.target_a;
+                    s.ticks_left = self.hold_ticks;
+                }
+            }
             Phase::Done => {}
         }
         s.current_a
@@ -336,6 +441,7 @@ mod tests {
         // A reading beyond the valid range (the rod at full stroke) is expected while saturating.
         for _ in 0..300 {
             let out = control.condition_sensed(
+                InverseKind::Dynamic,
                 &c,
                 &mut seq,
                 &mut state,
@@ -347,13 +453,19 @@ mod tests {
         let held = state.core.last_current_a;
         assert!(held < 0.0, "{held}");
         // A missing sample latches the fault: the coil ramps to 0 A at the slew limit.
-        let out = control.condition_sensed(&c, &mut seq, &mut state, Err(SensorFault::Missing));
+        let out = control.condition_sensed(
+            InverseKind::Dynamic,
+            &c,
+            &mut seq,
+            &mut state,
+            Err(SensorFault::Missing),
+        );
         assert!(out.flags.has(CommandFlags::SENSOR_FAULT));
         assert!((out.current_a - held).abs() <= limiter.max_step_a() * 1.0001);
         let mut last = out.current_a;
         for _ in 0..10 {
             last = control
-                .condition_sensed(&c, &mut seq, &mut state, Ok(20e-6))
+                .condition_sensed(InverseKind::Dynamic, &c, &mut seq, &mut state, Ok(20e-6))
                 .current_a;
         }
         assert_eq!(last, 0.0);
@@ -361,7 +473,7 @@ mod tests {
         let mut state: LoopState<64> = control.init(InverseKind::Dynamic);
         let mut seq = c.start(0.0, first);
         while !seq.done() {
-            control.condition_sensed(&c, &mut seq, &mut state, Ok(20e-6));
+            control.condition_sensed(InverseKind::Dynamic, &c, &mut seq, &mut state, Ok(20e-6));
         }
         assert_eq!(state.core.last_current_a, first);
     }

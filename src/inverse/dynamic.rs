@@ -84,6 +84,13 @@ impl DynamicInverse {
         }
     }
 
+    /// The displacement (5) settles at under a constant magnetization `m` (A/m), m:
+    /// `ȳ = l_m λ_s M² / M_s²`.
+    #[inline]
+    pub fn static_displacement_m(&self, m_a_per_m: f32) -> f32 {
+        m_a_per_m * m_a_per_m / (self.u_per_accel * self.stiffness_per_s2)
+    }
+
     /// `u = M²` demanded by (5) for the desired motion, before the projection.
     #[inline]
     pub fn demanded_u(&self, desired: &DesiredMotion) -> f32 {

@@ -542,7 +542,10 @@ mod tests {
         ticks: usize,
         scored: usize,
     ) -> (f32, f32, LoopState<N>) {
-        let control = ControlLoop::new(&BAKED_MEASURE, params).unwrap();
+        // The learning alone (the stroke gain has its own tests).
+        let control = ControlLoop::new(&BAKED_MEASURE, params)
+            .unwrap()
+            .without_stroke_gain();
         let mut st: LoopState<N> = control.init(InverseKind::Dynamic);
         let d0 = control.trajectory().motion(&st.core.trajectory);
         let substeps = 4;

@@ -18,6 +18,7 @@ mod inverter;
 mod limiter;
 mod static_inverse;
 mod static_mode;
+mod stroke_gain;
 
 pub use conditioning::{
     Conditioning, ConditioningError, ConditioningState, Sweep, HOLD_S, RAMP_FULL_SCALE_S,
@@ -35,6 +36,7 @@ pub use inverter::{
 pub use limiter::{CommandFlags, LimiterError, OutputLimiter};
 pub use static_inverse::{StaticInverse, StaticInverseOutput};
 pub use static_mode::StaticMode;
+pub use stroke_gain::{StrokeGainLaw, StrokeGainState, MAX_RATIO as STROKE_GAIN_MAX_RATIO};
 
 /// The previous targets of an inverse (`H_k`, `M_k`), for the differences of (4).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -126,7 +126,7 @@ pub fn steps() -> Vec<Step> {
         },
         Step {
             name: "robustness",
-            purpose: "closed loop vs open loop on every robustness case (host) and three as firmware under QEMU: RMS <= 1 % of p-p in every row but backlash, >= 5x below the open loop in every rod-side row",
+            purpose: "closed loop vs open loop on every robustness case (host) and three as firmware under QEMU: RMS <= 1 % of p-p in every row but backlash, >= 5x below the open loop in every rod-side row, the stroke-constant rows <= 1 % over the whole run and settled within 3 cycles",
             action: Action::Func(|ctx| {
                 with_background_confined(|| crate::robustness::check(ctx).map(|_| ()))
             }),

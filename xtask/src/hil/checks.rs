@@ -120,12 +120,13 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     print!("{matrix}");
     summary.push_str(&matrix);
 
-    // (name, fault, exit status, feedback on, the run must end at 0 A)
+    // (name, fault, exit status, feedback on, the run must end at 0 A); injected in tracking,
+    // after the start-up conditioning (1,055 ticks with the feedback on, 552 without).
     for (name, inject, exit, feedback, zero) in [
-        ("nan", Inject::Nan(1_000), 7, true, false),
-        ("nan_feedback_off", Inject::Nan(1_000), 7, false, true),
-        ("silent", Inject::Silent(1_000), 8, true, true),
-        ("garbage", Inject::Garbage(1_000), 8, true, true),
+        ("nan", Inject::Nan(FAULT_TICK), 7, true, false),
+        ("nan_feedback_off", Inject::Nan(FAULT_TICK), 7, false, true),
+        ("silent", Inject::Silent(FAULT_TICK), 8, true, true),
+        ("garbage", Inject::Garbage(FAULT_TICK), 8, true, true),
     ] {
         let mut f = HilRun::new(base.join(format!("fault_{name}")));
         f.ticks = 2_000;
@@ -151,6 +152,9 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     std::fs::write(base.join("summary.txt"), &summary)?;
     Ok(summary)
 }
+
+/// The tick the fault runs inject at: in tracking, after the start-up conditioning.
+pub(super) const FAULT_TICK: u32 = 1_500;
 
 /// The last command of a fault run (`link.csv` in `out`): 0 A when `zero`, else the feedforward
 /// fallback, still driving the coil and flagged `SENSOR_FAULT | FEEDFORWARD`.

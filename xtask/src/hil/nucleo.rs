@@ -2,7 +2,7 @@
 //! (`firmware-nucleo --features emulator-netduinoplus2`, docs/firmware.md) in lock-step with the
 //! bench plant over USART2.
 
-use super::checks::check_fault_end;
+use super::checks::{check_fault_end, FAULT_TICK};
 use super::{nucleo_emulator_firmware, run_once, Board, HilRun, Inject};
 use crate::util::Ctx;
 use anyhow::{ensure, Context, Result};
@@ -33,9 +33,10 @@ pub fn check(ctx: &Ctx, exe: &Path, base: &Path) -> Result<String> {
         run.ticks
     );
     ensure!(rms <= 1.0, "NUCLEO image: tracking RMS {rms:.3} % > 1 %");
+    // Injected in tracking, after the start-up conditioning (1,055 ticks with the feedback on).
     for (name, inject, exit, zero) in [
-        ("nan", Inject::Nan(1_000), 7, false),
-        ("silent", Inject::Silent(1_000), 8, true),
+        ("nan", Inject::Nan(FAULT_TICK), 7, false),
+        ("silent", Inject::Silent(FAULT_TICK), 8, true),
     ] {
         let mut f = HilRun::new(base.join(format!("fault_{name}")));
         f.board = Board::Nucleo;
@@ -45,7 +46,7 @@ pub fn check(ctx: &Ctx, exe: &Path, base: &Path) -> Result<String> {
         let r = run_once(ctx, &elf, Some(exe), &f)?;
         summary.push_str(&r.summary);
         ensure!(
-            r.commands >= 1_000,
+            r.commands >= FAULT_TICK as usize,
             "NUCLEO {name}: the run ended after {} command frames, before the injected fault",
             r.commands
         );
