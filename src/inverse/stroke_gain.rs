@@ -35,8 +35,10 @@
 //!
 //! # Cost
 //!
-//! Per tick while estimating: 4 multiply-adds, one division; afterwards one multiply per
-//! component of the target (three).
+//! Per tick while estimating (the conditioning's hold and the first 3 cycles): the sample's
+//! model displacement, 2 multiply-adds, one division, the clamp; afterwards a compare and one
+//! multiply per component of the target (three). Measured in the whole handler under QEMU
+//! (docs/model.md, the interrupt on rods the baked file does not describe).
 
 use crate::trajectory::DesiredMotion;
 
@@ -127,14 +129,16 @@ impl StrokeGainLaw {
     /// was limited, or the sample is not valid) adds nothing.
     #[inline]
     pub fn observe(&self, state: &mut StrokeGainState, measured_m: f32, usable: bool) {
+        // Frozen (the usual case after the first cycles): nothing to compute.
+        if !usable || !self.enabled || state.ticks >= self.estimate_ticks {
+            return;
+        }
         // The model's displacement at the sample's time t_k − d (Taylor from t_k).
         let t = &state.last_target;
         let d = self.delay_s;
         let model_m =
             t.displacement_m - d * t.velocity_m_per_s + 0.5 * d * d * t.acceleration_m_per_s2;
-        if usable {
-            self.add(state, measured_m, model_m);
-        }
+        self.add(state, measured_m, model_m);
     }
 
     /// Adds a sample taken with the rod at rest on the conditioning's last hold, where the model
