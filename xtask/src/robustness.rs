@@ -105,37 +105,54 @@ struct Row {
     current: f64,
 }
 
+/// The records of a CSV file `maglab robustness` wrote, after its `header`: each line's number
+/// (1-based) and its `header`'s count of fields.
+fn csv_records(csv: &Path, header: &str) -> Result<Vec<(usize, Vec<String>)>> {
+    let text =
+        std::fs::read_to_string(csv).with_context(|| format!("cannot read {}", csv.display()))?;
+    let mut lines = text.lines();
+    ensure!(
+        lines.next() == Some(header),
+        "{}: unexpected header",
+        csv.display()
+    );
+    let columns = header.split(',').count();
+    lines
+        .enumerate()
+        .map(|(n, l)| {
+            let c: Vec<String> = l.split(',').map(str::to_string).collect();
+            ensure!(
+                c.len() == columns,
+                "{}: line {}: expected {columns} columns",
+                csv.display(),
+                n + 2
+            );
+            Ok((n + 2, c))
+        })
+        .collect()
+}
+
+/// Field `i` of record `c` (line `line` of `csv`) as a number.
+fn number(csv: &Path, line: usize, c: &[String], i: usize) -> Result<f64> {
+    c[i].parse()
+        .with_context(|| format!("{}: line {line}: `{}`", csv.display(), c[i]))
+}
+
 /// Rows whose model error is a constant of the rod's stroke (λ_s, M_s, the Preisach masses):
 /// the stroke gain found on the conditioning hold removes it before tracking starts, so over the
 /// whole run (conditioning excluded) they must stay within 1 % and be settled within 3 cycles
 /// (docs/control.md, "The learning transient and the stroke gain").
 fn stroke_transient_failures(csv: &Path) -> Result<Vec<String>> {
-    let text =
-        std::fs::read_to_string(csv).with_context(|| format!("cannot read {}", csv.display()))?;
-    let mut lines = text.lines();
-    ensure!(
-        lines.next() == Some("case,whole_run_rms_pct,settled_rms_pct,settle_s,settle_cycles"),
-        "{}: unexpected header",
-        csv.display()
-    );
     let mut failures = Vec::new();
-    for (n, l) in lines.enumerate() {
-        let c: Vec<&str> = l.split(',').collect();
-        ensure!(
-            c.len() == 5,
-            "{}: line {}: expected 5 columns",
-            csv.display(),
-            n + 2
-        );
+    let header = "case,whole_run_rms_pct,settled_rms_pct,settle_s,settle_cycles";
+    for (line, c) in csv_records(csv, header)? {
         if !["lambda_s", "M_s", "masses"]
             .iter()
             .any(|p| c[0].starts_with(p))
         {
             continue;
         }
-        let whole: f64 = c[1]
-            .parse()
-            .with_context(|| format!("{}: line {}: `{}`", csv.display(), n + 2, c[1]))?;
+        let whole = number(csv, line, &c, 1)?;
         // An empty settling time: never below 1 % at the end of the run.
         let cycles: f64 = c[4].parse().unwrap_or(f64::INFINITY);
         if whole > 1.0 || cycles > 3.0 {
@@ -149,35 +166,16 @@ fn stroke_transient_failures(csv: &Path) -> Result<Vec<String>> {
 }
 
 fn read_rows(csv: &Path) -> Result<Vec<Row>> {
-    let text =
-        std::fs::read_to_string(csv).with_context(|| format!("cannot read {}", csv.display()))?;
-    let mut lines = text.lines();
-    ensure!(
-        lines.next()
-            == Some("case,open_loop_rms_pct,closed_loop_rms_pct,closed_loop_max_pct,current_rms_a"),
-        "{}: unexpected header",
-        csv.display()
-    );
-    lines
-        .enumerate()
-        .map(|(n, l)| {
-            let c: Vec<&str> = l.split(',').collect();
-            ensure!(
-                c.len() == 5,
-                "{}: line {}: expected 5 columns",
-                csv.display(),
-                n + 2
-            );
-            let f = |i: usize| -> Result<f64> {
-                c[i].parse()
-                    .with_context(|| format!("{}: line {}: `{}`", csv.display(), n + 2, c[i]))
-            };
+    let header = "case,open_loop_rms_pct,closed_loop_rms_pct,closed_loop_max_pct,current_rms_a";
+    csv_records(csv, header)?
+        .into_iter()
+        .map(|(line, c)| {
             Ok(Row {
-                case: c[0].to_string(),
-                open: f(1)?,
-                closed: f(2)?,
-                closed_max: f(3)?,
-                current: f(4)?,
+                open: number(csv, line, &c, 1)?,
+                closed: number(csv, line, &c, 2)?,
+                closed_max: number(csv, line, &c, 3)?,
+                current: number(csv, line, &c, 4)?,
+                case: c[0].clone(),
             })
         })
         .collect()
