@@ -1,6 +1,7 @@
 //! Prints the blind suite for any seed: `cargo run --release -p maglab-diagnose --example
 //! blind_suite -- SEED [COUNT]` (`BLIND_DESIGN=varied`: the varied experiment design,
-//! `maglab_plant::suite::Design`).
+//! `maglab_plant::suite::Design`; `BLIND_FORMS=tuning|held-out|all`: the effects' form set,
+//! `maglab_plant::suite::Forms`).
 #[path = "../tests/blind/mod.rs"]
 mod blind;
 
@@ -14,7 +15,12 @@ fn main() {
         .map_or(32, |s| s.parse().expect("COUNT is a number"));
     let started = std::time::Instant::now();
     let outcomes = blind::run_suite(seed, count, true);
-    println!("\n{}", blind::confusion_matrix(&outcomes));
+    println!(
+        "\nforms {}:\n{}\n{}",
+        blind::forms_from_env().name(),
+        blind::confusion_matrix(&outcomes),
+        blind::summary(&outcomes)
+    );
     println!(
         "suite seed {seed}: {} cases in {:.0} s",
         outcomes.len(),

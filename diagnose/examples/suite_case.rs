@@ -1,5 +1,5 @@
 //! One blind-suite case in detail: `cargo run --release -p maglab-diagnose --example suite_case
-//! -- SEED INDEX [COUNT]` (`BLIND_DESIGN=varied`: the varied experiment design).
+//! -- SEED INDEX [COUNT]` (`BLIND_DESIGN=varied`: the varied experiment design; `BLIND_FORMS`: the effects' form set).
 #[path = "../tests/blind/mod.rs"]
 mod blind;
 
@@ -10,11 +10,13 @@ fn main() {
     let count: usize = args.get(2).map_or(32, |s| s.parse().unwrap());
     let params = actuator_params::paper_defaults();
     let kind = maglab_plant::suite::kinds(seed, count)[index].clone();
-    let case = maglab_plant::suite::draw_with(
+    let case = maglab_plant::suite::draw_on(
         &params,
+        None,
         seed.wrapping_mul(1000).wrapping_add(index as u64),
         kind,
         blind::design_from_env(),
+        blind::forms_from_env(),
     )
     .unwrap();
     println!("{}", case.describe());

@@ -31,7 +31,12 @@ fn blind_suite_names_the_right_effect() {
     let matrix = blind::confusion_matrix(&outcomes);
     // Written to the process's stderr, past libtest's capture (which takes only the print
     // macros), so that `cargo xtask test`'s log shows the matrix on a pass too.
-    let _ = writeln!(std::io::stderr(), "\nblind suite, seed {seed}:\n{matrix}");
+    let _ = writeln!(
+        std::io::stderr(),
+        "\nblind suite, seed {seed}, forms {}:\n{matrix}\n{}",
+        blind::forms_from_env().name(),
+        blind::summary(&outcomes)
+    );
     let mut seconds: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
     seconds.sort_by(f64::total_cmp);
     let _ = writeln!(
@@ -45,8 +50,15 @@ fn blind_suite_names_the_right_effect() {
     // In the varied design an effect's plausible range may not reach 5 % at the frequencies a
     // case was drawn with (a 200 Hz sensor lag seen up to 270 Hz): such cases stay in, weaker.
     // So may an effect on a rod the coil cannot saturate (rod mode: its loops strain the rod less).
-    let lowest = match (blind::design_from_env(), blind::rods_from_env()) {
-        (maglab_plant::suite::Design::Standard, false) => 0.04,
+    // So may another physical form of an effect than the plant's first (`BLIND_FORMS`).
+    let lowest = match (
+        blind::design_from_env(),
+        blind::rods_from_env(),
+        blind::forms_from_env(),
+    ) {
+        (maglab_plant::suite::Design::Standard, false, maglab_plant::suite::Forms::Original) => {
+            0.04
+        }
         _ => 0.0,
     };
     for o in &outcomes {

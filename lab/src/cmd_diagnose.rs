@@ -78,7 +78,12 @@ pub fn run(args: &Args) -> Result<()> {
     let named: Vec<&str> = std::iter::once(d.verdict.as_str())
         .chain(d.additional_effects.iter().map(|s| s.as_str()))
         .collect();
-    println!("verdict: {} — {}", named.join(" + "), d.verdict_reason);
+    println!(
+        "verdict: {} (grade {}) — {}",
+        named.join(" + "),
+        d.grade.name(),
+        d.verdict_reason
+    );
     if !d.equal_on_training.is_empty() {
         println!(
             "  as good on the training experiments (only the held-out extrapolation ranks them): {}",
@@ -176,8 +181,9 @@ fn verdict_section(s: &mut String, run: &DiagnosisRun, args: &Args) {
         .collect();
     let _ = writeln!(
         s,
-        "## Verdict: `{}`\n\n{}.\n",
+        "## Verdict: `{}` (grade `{}`)\n\n{}.\n",
         named.join(" + "),
+        d.grade.name(),
         d.verdict_reason
     );
     if let Some(note) = also_significant_note(d) {

@@ -106,6 +106,9 @@ pub fn run(args: &Args) -> Result<()> {
             for (k, v, lo, hi, what) in spec.keys {
                 println!("    {k} = {v}  in [{lo}, {hi}]  ({what})");
             }
+            for (i, (form, equation)) in spec.forms.iter().enumerate() {
+                println!("    form={i}: {form}: {equation}");
+            }
         }
         return Ok(());
     }

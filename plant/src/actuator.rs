@@ -62,21 +62,49 @@ pub const PLANT_STARTS: [StartState; 6] = [
     StartState::Previous,
 ];
 
+/// The current loop's form (`amplifier_bandwidth`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum AmplifierForm {
+    /// `i'' = ω² (cmd − i) − 2ζω i'`, `|i'| ≤ slew`.
+    SecondOrder,
+    /// `i' = ω (cmd − i)`, `|i'| ≤ slew`.
+    FirstOrder,
+    /// A PI loop with crossover `ω` on the coil (`v = i + τ_L w'/c0`, see
+    /// [`Plant::coil_current`]), `|v| ≤ v_lim`.
+    PiLoop { tau_l: f64, v_lim: f64 },
+}
+
 #[derive(Debug, Clone, Copy)]
 struct Amplifier {
+    form: AmplifierForm,
     omega: f64,
     zeta: f64,
     slew: f64,
 }
 
+/// The sensor's low-pass with a state (`sensor_dynamics` forms 0 and 1; the laser's moving
+/// average works on the history instead: `Resolved::sensor_window_s`).
 #[derive(Debug, Clone, Copy)]
 struct SensorFilter {
     omega: f64,
     zeta: f64,
+    second_order: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum ThermalForm {
+    Lumped,
+    /// The rod as three shells in series (`T_ROD`, `T_SHELL2`, `T_SHELL3`).
+    Distributed,
+    /// The current capped at `compliance_a / R(T)`.
+    VoltageLimited {
+        compliance_a: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
 struct Thermal {
+    form: ThermalForm,
     rise: f64,
     tau_coil: f64,
     tau_rod: f64,
@@ -85,21 +113,81 @@ struct Thermal {
     expansion: f64,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum DeltaEForm {
+    Quartic,
+    Cubic,
+    Field { h_s: f64 },
+}
+
+#[derive(Debug, Clone, Copy)]
+struct DeltaE {
+    form: DeltaEForm,
+    d: f64,
+    s: f64,
+}
+
+/// A chain of `modes` (1-3) load masses; `r_k` each mass over the rod's, `w_k`, `z_k` its
+/// coupling to the one before.
 #[derive(Debug, Clone, Copy)]
 struct LoadModes {
+    modes: usize,
     r2: f64,
     w2: f64,
     z2: f64,
     r3: f64,
     w3: f64,
     z3: f64,
+    r4: f64,
+    w4: f64,
+    z4: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum FrictionForm {
+    Coulomb,
+    Stribeck {
+        speed_m_per_s: f64,
+    },
+    /// Dahl: the force (per unit mass) `Plant::dahl_accel` follows the displacement.
+    Dahl {
+        presliding_m: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
 struct Friction {
+    form: FrictionForm,
     static_accel: f64,
     kinetic_accel: f64,
 }
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum BacklashForm {
+    Play,
+    /// The follower reaches the play's output with `1 − exp(−ω dt)` per substep.
+    Lagging {
+        omega: f64,
+    },
+    Smooth,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Backlash {
+    form: BacklashForm,
+    width_m: f64,
+}
+
+/// Relaxation terms of the creep strain, equal shares.
+#[derive(Debug, Clone, Copy)]
+struct Creep {
+    ratio: f64,
+    taus_s: [f64; CREEP_TERMS],
+    terms: usize,
+}
+
+/// Most creep terms of any form.
+const CREEP_TERMS: usize = 5;
 
 /// The effects resolved into the plant's coefficients.
 #[derive(Debug, Clone, Default)]
@@ -108,17 +196,19 @@ struct Resolved {
     paths: Vec<(f64, f64)>,
     amplifier: Option<Amplifier>,
     sensor: Option<SensorFilter>,
+    /// The laser's moving-average window, s (0: none).
+    sensor_window_s: f64,
     sensor_delay_s: f64,
-    reversible: Option<(f64, f64)>,
+    /// `(form, χ0, H_r)`.
+    reversible: Option<(usize, f64, f64)>,
     thermal: Option<Thermal>,
-    delta_e: Option<(f64, f64)>,
+    delta_e: Option<DeltaE>,
     load: Option<LoadModes>,
-    backlash_m: Option<f64>,
+    backlash: Option<Backlash>,
     friction: Option<Friction>,
-    /// `(ratio, τ0)`.
-    creep: Option<(f64, f64)>,
-    /// `(g, null, half range)`.
-    sensor_gain_change: Option<(f64, f64, f64)>,
+    creep: Option<Creep>,
+    /// `(form, g, null, half range)`.
+    sensor_gain_change: Option<(usize, f64, f64, f64)>,
 }
 
 /// Indices of the state vector.
@@ -132,12 +222,17 @@ const Y2: usize = 6;
 const V2: usize = 7;
 const Y3: usize = 8;
 const V3: usize = 9;
-const S1: usize = 10;
-const S2: usize = 11;
-const T_COIL: usize = 12;
-const T_ROD: usize = 13;
-const CREEP0: usize = 14;
-const J0: usize = 17;
+const Y4: usize = 10;
+const V4: usize = 11;
+const S1: usize = 12;
+const S2: usize = 13;
+const T_COIL: usize = 14;
+/// The rod's temperature (its outer shell in the distributed form).
+const T_ROD: usize = 15;
+const T_SHELL2: usize = 16;
+const T_SHELL3: usize = 17;
+const CREEP0: usize = 18;
+const J0: usize = CREEP0 + CREEP_TERMS;
 
 /// The nominal constants of the plant, f64.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -189,6 +284,12 @@ pub struct Plant {
     stuck: bool,
     slide_sign: f64,
     backlash_z: f64,
+    /// The play operator's output ahead of a lagging follower; the displacement at the last
+    /// commit (smooth play).
+    backlash_play: f64,
+    backlash_y_prev: f64,
+    /// Dahl friction force per unit mass, m/s².
+    dahl_accel: f64,
     /// Sensor output (before delay, nonlinearity, offset, noise) at every substep, oldest first,
     /// with the time of the first entry.
     history: Vec<f64>,
@@ -267,8 +368,14 @@ impl Plant {
             fastest = fastest.min(1.0 / (s.omega * (s.zeta + 1.0)));
         }
         if let Some(l) = fx.load {
-            let top = (l.w2 * (1.0 + l.r2).sqrt()).max(l.w3 * (1.0 + l.r3 / l.r2.max(1e-9)).sqrt());
-            fastest = fastest.min(1.0 / (top * (1.0 + l.z2.max(l.z3))));
+            let mut top = l.w2 * (1.0 + l.r2).sqrt();
+            if l.modes >= 2 {
+                top = top.max(l.w3 * (1.0 + l.r3 / l.r2.max(1e-9)).sqrt());
+            }
+            if l.modes >= 3 {
+                top = top.max(l.w4 * (1.0 + l.r4 / l.r3.max(1e-9)).sqrt());
+            }
+            fastest = fastest.min(1.0 / (top * (1.0 + l.z2.max(l.z3).max(l.z4))));
         }
         let max_substep = MAX_SUBSTEP_S.min(0.25 * fastest);
         let substeps = (sample_s / max_substep).ceil().max(1.0) as usize;
@@ -285,6 +392,9 @@ impl Plant {
             stuck: false,
             slide_sign: 0.0,
             backlash_z: 0.0,
+            backlash_play: 0.0,
+            backlash_y_prev: 0.0,
+            dahl_accel: 0.0,
             history: Vec::new(),
             history_t0_s: 0.0,
             keep_history: true,
@@ -399,14 +509,16 @@ impl Plant {
     /// velocity `v_m_per_s` (e.g. the state a controller assumes at its first sample, so a
     /// tracking run starts without a transient).
     pub fn set_motion(&mut self, y_m: f64, v_m_per_s: f64) {
-        for i in [Y1, Y2, Y3] {
+        for i in [Y1, Y2, Y3, Y4] {
             self.x[i] = y_m;
         }
-        for i in [V1, V2, V3] {
+        for i in [V1, V2, V3, V4] {
             self.x[i] = v_m_per_s;
         }
         self.stuck = false;
         self.backlash_z = y_m;
+        self.backlash_play = y_m;
+        self.backlash_y_prev = y_m;
         self.x[S1] = y_m;
         self.x[S2] = v_m_per_s;
         self.history.clear();
@@ -421,42 +533,97 @@ impl Plant {
         self.memory.move_to(&self.grid, h);
         let m = self.memory.output_a_per_m(&self.grid) + self.reversible(h).0;
         let n = self.x.len();
-        let (tc, tr) = (self.x[T_COIL], self.x[T_ROD]);
+        let temperatures = [T_COIL, T_ROD, T_SHELL2, T_SHELL3].map(|k| self.x[k]);
         self.x = vec![0.0; n];
         if !cold {
-            self.x[T_COIL] = tc;
-            self.x[T_ROD] = tr;
+            for (k, t) in [T_COIL, T_ROD, T_SHELL2, T_SHELL3]
+                .into_iter()
+                .zip(temperatures)
+            {
+                self.x[k] = t;
+            }
         }
         self.x[I_COIL] = current_a;
+        // At rest the PI loop's integrator holds the whole voltage (`v = i`).
+        self.x[DI_COIL] = match self.fx.amplifier.map(|a| a.form) {
+            Some(AmplifierForm::PiLoop { .. }) => current_a,
+            _ => 0.0,
+        };
         self.x[H] = h;
         self.x[M] = m;
-        let u = self.static_strain(m, self.x[T_ROD]);
+        let u = self.static_strain(m, self.rod_temperature(&self.x));
         let u_eff = match self.fx.creep {
-            Some((ratio, _)) => {
-                for k in 0..3 {
+            Some(c) => {
+                for k in 0..c.terms {
                     self.x[CREEP0 + k] = u;
                 }
-                u * (1.0 + ratio)
+                u * (1.0 + c.ratio)
             }
             None => u,
         };
-        for i in [Y1, Y2, Y3] {
+        for i in [Y1, Y2, Y3, Y4] {
             self.x[i] = u_eff;
         }
-        self.stuck = self.fx.friction.is_some();
+        self.stuck = self
+            .fx
+            .friction
+            .is_some_and(|f| !matches!(f.form, FrictionForm::Dahl { .. }));
         self.slide_sign = 0.0;
+        self.dahl_accel = 0.0;
         self.backlash_z = u_eff;
+        self.backlash_play = u_eff;
+        self.backlash_y_prev = u_eff;
         self.x[S1] = u_eff;
     }
 
     /// `(M_rev(h), dM_rev/dh)`.
     fn reversible(&self, h: f64) -> (f64, f64) {
         match self.fx.reversible {
-            Some((chi, hr)) => {
+            Some((0, chi, hr)) => {
                 let t = (h / hr).tanh();
                 (chi * hr * t, chi * (1.0 - t * t))
             }
+            // Langevin: 3 χ0 H_r L(x), x = H/H_r, L(x) = coth x − 1/x (slope 1/3 at 0); the
+            // series below |x| = 0.05 (error < 1e-11) avoids the cancellation of coth x − 1/x.
+            Some((1, chi, hr)) => {
+                let x = h / hr;
+                let (l, dl) = if x.abs() < 0.05 {
+                    let x2 = x * x;
+                    (
+                        x / 3.0 - x * x2 / 45.0 + 2.0 * x * x2 * x2 / 945.0,
+                        1.0 / 3.0 - x2 / 15.0 + 2.0 * x2 * x2 / 189.0,
+                    )
+                } else {
+                    let sh = x.sinh();
+                    (1.0 / x.tanh() - 1.0 / x, 1.0 / (x * x) - 1.0 / (sh * sh))
+                };
+                (3.0 * chi * hr * l, 3.0 * chi * dl)
+            }
+            // Fröhlich–Kennelly: χ0 H / (1 + |H|/H_r).
+            Some((_, chi, hr)) => {
+                let q = 1.0 + h.abs() / hr;
+                (chi * h / q, chi / (q * q))
+            }
             None => (0.0, 0.0),
+        }
+    }
+
+    /// The rod temperature the strain sees: its one node, or the mean of its three shells.
+    fn rod_temperature(&self, x: &[f64]) -> f64 {
+        match self.fx.thermal.map(|t| t.form) {
+            Some(ThermalForm::Distributed) => (x[T_ROD] + x[T_SHELL2] + x[T_SHELL3]) / 3.0,
+            _ => x[T_ROD],
+        }
+    }
+
+    /// The creep strain added to the static strain `u`.
+    fn creep_strain(&self, x: &[f64]) -> f64 {
+        match self.fx.creep {
+            Some(c) => {
+                let sum: f64 = x[CREEP0..CREEP0 + c.terms].iter().sum();
+                c.ratio * sum / c.terms as f64
+            }
+            None => 0.0,
         }
     }
 
@@ -495,12 +662,21 @@ impl Plant {
         let c = &self.constants;
         let om0 = c.omega0_rad_per_s;
         let stiffness = match self.fx.delta_e {
-            Some((d, s)) => {
+            Some(de) => {
                 let m = x[M] / c.saturation_a_per_m;
-                let m2 = m * m;
                 let strain = (x[Y1] - u_eff) / c.stroke_m;
-                let q = (1.0 - m2) * (1.0 - m2);
-                ((1.0 + d) / (1.0 + d * q) + s * strain).max(0.05)
+                let k = match de.form {
+                    DeltaEForm::Quartic => {
+                        let q = (1.0 - m * m) * (1.0 - m * m);
+                        (1.0 + de.d) / (1.0 + de.d * q)
+                    }
+                    DeltaEForm::Cubic => 1.0 + de.d * (m * m * m).abs(),
+                    DeltaEForm::Field { h_s } => {
+                        let t = (x[H] / h_s).tanh();
+                        1.0 + de.d * t * t
+                    }
+                };
+                (k + de.s * strain).max(0.05)
             }
             None => 1.0,
         };
@@ -512,22 +688,69 @@ impl Plant {
         a1
     }
 
+    /// The coil current at state `x` under `command_a` and, for the PI loop, its integrator's
+    /// rate (`None` when the current is a state of its own or the command itself).
+    ///
+    /// The PI loop drives the coil, `v = R i + N A μ0 w'` (w = H + M the rod's flux per μ0 N A),
+    /// in units of `v/R`: `v = i + κ (i − g)` with `w' = c1 (i − g)` (eq. (4)), `g = H/c0 + ΣJ`,
+    /// `κ = τ_L c1 / c0` (`L = μ0 N A c0`). Its controller `v = K_p (cmd − i) + z`,
+    /// `z' = ω_c (cmd − i)`, `K_p = ω_c τ_L` (the zero on the coil's pole: crossover at ω_c),
+    /// gives `i` algebraically; at the voltage limit `v` is clamped and `z` held (anti-windup).
+    fn coil_current(&self, command_a: f64, x: &[f64]) -> (f64, Option<f64>) {
+        let c = &self.constants;
+        let (i, dz) = match self.fx.amplifier {
+            Some(Amplifier {
+                form: AmplifierForm::PiLoop { tau_l, v_lim },
+                omega,
+                ..
+            }) => {
+                let kappa = tau_l * c.c1_per_m_s / c.c0_per_m;
+                let kp = omega * tau_l;
+                let g = x[H] / c.c0_per_m + x[J0..].iter().sum::<f64>();
+                let z = x[DI_COIL];
+                let i = (kp * command_a + z + kappa * g) / (1.0 + kp + kappa);
+                let v = kp * (command_a - i) + z;
+                if v.abs() > v_lim {
+                    let v = v.clamp(-v_lim, v_lim);
+                    ((v + kappa * g) / (1.0 + kappa), Some(0.0))
+                } else {
+                    (i, Some(omega * (command_a - i)))
+                }
+            }
+            Some(_) => (x[I_COIL], None),
+            None => (command_a, None),
+        };
+        // The amplifier's compliance voltage over the heated coil's resistance.
+        match self.fx.thermal {
+            Some(Thermal {
+                form: ThermalForm::VoltageLimited { compliance_a },
+                tempco,
+                ..
+            }) => {
+                let cap = compliance_a / (1.0 + tempco * x[T_COIL].clamp(0.0, MAX_RISE_K));
+                (i.clamp(-cap, cap), dz)
+            }
+            _ => (i, dz),
+        }
+    }
+
     fn derivatives(&self, command_a: f64, x: &[f64], dx: &mut [f64]) {
         let c = &self.constants;
         // Coil current.
-        let i = match self.fx.amplifier {
-            Some(a) => {
+        let (i, dz) = self.coil_current(command_a, x);
+        dx[I_COIL] = 0.0;
+        dx[DI_COIL] = 0.0;
+        match self.fx.amplifier {
+            Some(a) if a.form == AmplifierForm::SecondOrder => {
                 dx[I_COIL] = x[DI_COIL].clamp(-a.slew, a.slew);
                 dx[DI_COIL] = a.omega * a.omega * (command_a - x[I_COIL])
                     - 2.0 * a.zeta * a.omega * x[DI_COIL];
-                x[I_COIL]
             }
-            None => {
-                dx[I_COIL] = 0.0;
-                dx[DI_COIL] = 0.0;
-                command_a
+            Some(a) if a.form == AmplifierForm::FirstOrder => {
+                dx[I_COIL] = (a.omega * (command_a - x[I_COIL])).clamp(-a.slew, a.slew);
             }
-        };
+            _ => dx[DI_COIL] = dz.unwrap_or(0.0),
+        }
         // Eddy currents and hysteresis (module docs).
         let h = x[H];
         let j_sum: f64 = x[J0..].iter().sum();
@@ -540,48 +763,46 @@ impl Plant {
             dx[J0 + k] = (w_dot * inv_c1k - x[J0 + k]) / tau;
         }
         // Temperatures.
-        match self.fx.thermal {
-            Some(t) => {
-                // Copper resistance rises with temperature (heating ~ I² R(T)); the coil's
-                // insulation limit (200 K rise) caps it, so the plant cannot run away.
-                let heating = t.rise * i * i * (1.0 + t.tempco * x[T_COIL].clamp(0.0, MAX_RISE_K));
-                let heating = if x[T_COIL] >= MAX_RISE_K {
-                    heating.min(x[T_COIL])
-                } else {
-                    heating
-                };
-                dx[T_COIL] = (heating - x[T_COIL]) / t.tau_coil;
+        for k in [T_COIL, T_ROD, T_SHELL2, T_SHELL3] {
+            dx[k] = 0.0;
+        }
+        if let Some(t) = self.fx.thermal {
+            // Copper resistance rises with temperature (heating ~ I² R(T)); the coil's
+            // insulation limit (200 K rise) caps it, so the plant cannot run away.
+            let heating = t.rise * i * i * (1.0 + t.tempco * x[T_COIL].clamp(0.0, MAX_RISE_K));
+            let heating = if x[T_COIL] >= MAX_RISE_K {
+                heating.min(x[T_COIL])
+            } else {
+                heating
+            };
+            dx[T_COIL] = (heating - x[T_COIL]) / t.tau_coil;
+            if t.form == ThermalForm::Distributed {
+                // Three shells in series, each link a third of the rod's time constant.
+                let tau = t.tau_rod / 3.0;
+                dx[T_ROD] = (x[T_COIL] - x[T_ROD]) / tau - (x[T_ROD] - x[T_SHELL2]) / tau;
+                dx[T_SHELL2] = (x[T_ROD] - x[T_SHELL2]) / tau - (x[T_SHELL2] - x[T_SHELL3]) / tau;
+                dx[T_SHELL3] = (x[T_SHELL2] - x[T_SHELL3]) / tau;
+            } else {
                 dx[T_ROD] = (x[T_COIL] - x[T_ROD]) / t.tau_rod;
-            }
-            None => {
-                dx[T_COIL] = 0.0;
-                dx[T_ROD] = 0.0;
             }
         }
         // Strain drive, creep.
-        let u = self.static_strain(x[M], x[T_ROD]);
-        let u_eff = match self.fx.creep {
-            Some((ratio, tau0)) => {
-                let mut tau = tau0;
-                let mut acc = 0.0;
-                for k in 0..3 {
-                    dx[CREEP0 + k] = (u - x[CREEP0 + k]) / tau;
-                    acc += x[CREEP0 + k];
-                    tau *= 10.0;
-                }
-                u + ratio * acc / 3.0
+        let u = self.static_strain(x[M], self.rod_temperature(x));
+        for k in 0..CREEP_TERMS {
+            dx[CREEP0 + k] = 0.0;
+        }
+        if let Some(cr) = self.fx.creep {
+            for k in 0..cr.terms {
+                dx[CREEP0 + k] = (u - x[CREEP0 + k]) / cr.taus_s[k];
             }
-            None => {
-                for k in 0..3 {
-                    dx[CREEP0 + k] = 0.0;
-                }
-                u
-            }
-        };
+        }
+        let u_eff = u + self.creep_strain(x);
         // Rod head, with friction.
         let mut a1 = self.rod_acceleration(x, u_eff);
         if let Some(f) = self.fx.friction {
-            if self.stuck {
+            if let FrictionForm::Dahl { .. } = f.form {
+                a1 -= self.dahl_accel;
+            } else if self.stuck {
                 a1 = 0.0;
             } else {
                 let dir = if x[V1] != 0.0 {
@@ -589,38 +810,58 @@ impl Plant {
                 } else {
                     self.slide_sign
                 };
-                a1 -= f.kinetic_accel * dir;
+                let level = match f.form {
+                    FrictionForm::Stribeck { speed_m_per_s } => {
+                        let q = x[V1] / speed_m_per_s;
+                        f.kinetic_accel + (f.static_accel - f.kinetic_accel) * (-q * q).exp()
+                    }
+                    _ => f.kinetic_accel,
+                };
+                a1 -= level * dir;
             }
         }
         dx[Y1] = if self.stuck { 0.0 } else { x[V1] };
         dx[V1] = a1;
-        // Load masses.
-        match self.fx.load {
-            Some(l) => {
-                let c12 = l.w2 * l.w2 * (x[Y1] - x[Y2]) + 2.0 * l.z2 * l.w2 * (x[V1] - x[V2]);
-                let c23 = l.w3 * l.w3 * (x[Y2] - x[Y3]) + 2.0 * l.z3 * l.w3 * (x[V2] - x[V3]);
-                dx[Y2] = x[V2];
-                dx[V2] = c12 - if l.r2 > 0.0 { l.r3 / l.r2 } else { 0.0 } * c23;
+        // Load masses: a chain, each coupling's force shared by the masses it joins.
+        for k in [Y2, V2, Y3, V3, Y4, V4] {
+            dx[k] = 0.0;
+        }
+        if let Some(l) = self.fx.load {
+            let coupling = |ya: usize, yb: usize, w: f64, z: f64| {
+                w * w * (x[ya] - x[yb]) + 2.0 * z * w * (x[ya + 1] - x[yb + 1])
+            };
+            let c12 = coupling(Y1, Y2, l.w2, l.z2);
+            let c23 = if l.modes >= 2 {
+                coupling(Y2, Y3, l.w3, l.z3)
+            } else {
+                0.0
+            };
+            let c34 = if l.modes >= 3 {
+                coupling(Y3, Y4, l.w4, l.z4)
+            } else {
+                0.0
+            };
+            dx[Y2] = x[V2];
+            dx[V2] = c12 - l.r3 / l.r2 * c23;
+            if l.modes >= 2 {
                 dx[Y3] = x[V3];
-                dx[V3] = c23;
+                dx[V3] = c23 - if l.r3 > 0.0 { l.r4 / l.r3 } else { 0.0 } * c34;
             }
-            None => {
-                dx[Y2] = 0.0;
-                dx[V2] = 0.0;
-                dx[Y3] = 0.0;
-                dx[V3] = 0.0;
+            if l.modes >= 3 {
+                dx[Y4] = x[V4];
+                dx[V4] = c34;
             }
         }
         // Sensor low-pass, driven by the (backlash) follower position.
-        match self.fx.sensor {
-            Some(s) => {
+        dx[S1] = 0.0;
+        dx[S2] = 0.0;
+        if let Some(s) = self.fx.sensor {
+            if s.second_order {
                 dx[S1] = x[S2];
                 dx[S2] =
                     s.omega * s.omega * (self.backlash_z - x[S1]) - 2.0 * s.zeta * s.omega * x[S2];
-            }
-            None => {
-                dx[S1] = 0.0;
-                dx[S2] = 0.0;
+            } else {
+                dx[S1] = s.omega * (self.backlash_z - x[S1]);
             }
         }
     }
@@ -659,10 +900,19 @@ impl Plant {
             for q in 0..n {
                 self.x[q] = w.x0[q] + dt / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q]);
             }
-            if self.fx.amplifier.is_none() {
-                self.x[I_COIL] = cmd(f1);
+            let current_is_state = self.fx.amplifier.is_some_and(|a| {
+                matches!(
+                    a.form,
+                    AmplifierForm::SecondOrder | AmplifierForm::FirstOrder
+                )
+            });
+            if !current_is_state {
+                let x = std::mem::take(&mut self.x);
+                let (i, _) = self.coil_current(cmd(f1), &x);
+                self.x = x;
+                self.x[I_COIL] = i;
             }
-            self.commit(w.x0[V1]);
+            self.commit(w.x0[V1], w.x0[Y1]);
             self.t_s += dt;
             if self.keep_history {
                 let v = self.sensor_state_output();
@@ -673,54 +923,88 @@ impl Plant {
     }
 
     /// End of a substep: commit the Preisach memory and the discrete states.
-    fn commit(&mut self, v1_before: f64) {
+    fn commit(&mut self, v1_before: f64, y1_before: f64) {
         let h = self.x[H];
         self.memory.move_to(&self.grid, h);
         self.x[M] = self.memory.output_a_per_m(&self.grid) + self.reversible(h).0;
         if let Some(f) = self.fx.friction {
-            let u = self.static_strain(self.x[M], self.x[T_ROD]);
-            let u_eff = match self.fx.creep {
-                Some((ratio, _)) => {
-                    u + ratio * (self.x[CREEP0] + self.x[CREEP0 + 1] + self.x[CREEP0 + 2]) / 3.0
-                }
-                None => u,
-            };
-            if self.stuck {
-                self.x[V1] = 0.0;
-                let a = self.rod_acceleration(&self.x, u_eff);
-                if a.abs() > f.static_accel {
-                    self.stuck = false;
-                    self.slide_sign = a.signum();
-                }
-            } else if self.x[V1] * v1_before < 0.0 || self.x[V1] == 0.0 {
-                // The head stopped within the substep: it sticks unless the force breaks it
-                // away again at once.
-                self.x[V1] = 0.0;
-                let a = self.rod_acceleration(&self.x, u_eff);
-                if a.abs() <= f.static_accel {
-                    self.stuck = true;
-                } else {
-                    self.slide_sign = a.signum();
-                }
+            self.commit_friction(f, v1_before, self.x[Y1] - y1_before);
+        }
+        let y = self.observed();
+        if let Some(b) = self.fx.backlash {
+            self.commit_backlash(b, y);
+        } else {
+            self.backlash_z = y;
+        }
+        self.backlash_y_prev = y;
+    }
+
+    /// Friction's discrete state at the end of a substep: stuck or sliding (Coulomb, Stribeck),
+    /// or the Dahl force moved along the substep's displacement.
+    fn commit_friction(&mut self, f: Friction, v1_before: f64, dy: f64) {
+        if let FrictionForm::Dahl { presliding_m } = f.form {
+            // dF/dy = σ (1 − F/F_c sgn dy), solved exactly over the substep's dy (one sign):
+            // F → s F_c + (F − s F_c) exp(−σ |dy| / F_c), σ = F_s / presliding.
+            let fc = f.kinetic_accel.max(1e-30);
+            let sigma = f.static_accel / presliding_m;
+            let target = dy.signum() * fc;
+            self.dahl_accel = target + (self.dahl_accel - target) * (-sigma * dy.abs() / fc).exp();
+            return;
+        }
+        let u_eff = self.static_strain(self.x[M], self.rod_temperature(&self.x))
+            + self.creep_strain(&self.x);
+        if self.stuck {
+            self.x[V1] = 0.0;
+            let a = self.rod_acceleration(&self.x, u_eff);
+            if a.abs() > f.static_accel {
+                self.stuck = false;
+                self.slide_sign = a.signum();
+            }
+        } else if self.x[V1] * v1_before < 0.0 || self.x[V1] == 0.0 {
+            // The head stopped within the substep: it sticks unless the force breaks it
+            // away again at once.
+            self.x[V1] = 0.0;
+            let a = self.rod_acceleration(&self.x, u_eff);
+            if a.abs() <= f.static_accel {
+                self.stuck = true;
             } else {
-                self.slide_sign = self.x[V1].signum();
+                self.slide_sign = a.signum();
+            }
+        } else {
+            self.slide_sign = self.x[V1].signum();
+        }
+    }
+
+    /// The linkage's follower at the end of a substep, the displacement being `y` (rate
+    /// independent forms exact at substep resolution).
+    fn commit_backlash(&mut self, b: Backlash, y: f64) {
+        let half = 0.5 * b.width_m;
+        let play = |z: f64| {
+            if y - z > half {
+                y - half
+            } else if z - y > half {
+                y + half
+            } else {
+                z
+            }
+        };
+        match b.form {
+            BacklashForm::Play => self.backlash_z = play(self.backlash_z),
+            BacklashForm::Lagging { omega } => {
+                self.backlash_play = play(self.backlash_play);
+                let dt = self.sample_s / self.substeps as f64;
+                let k = 1.0 - (-omega * dt).exp();
+                self.backlash_z += k * (self.backlash_play - self.backlash_z);
+            }
+            BacklashForm::Smooth => {
+                // The follower takes the fraction q⁴ of the move, q its distance from the
+                // trailing edge over the half width (1 at the edge: it moves with y).
+                let dy = y - self.backlash_y_prev;
+                let q = ((y - self.backlash_z) * dy.signum() / half.max(1e-15)).clamp(0.0, 1.0);
+                let z = self.backlash_z + dy * q * q * q * q;
+                self.backlash_z = z.clamp(y - half, y + half);
             }
         }
-        // The play operator of the linkage (rate independent: exact at substep resolution).
-        let y = self.observed();
-        self.backlash_z = match self.fx.backlash_m {
-            Some(width) => {
-                let half = 0.5 * width;
-                if y - self.backlash_z > half {
-                    y - half
-                } else if self.backlash_z - y > half {
-                    y + half
-                } else {
-                    self.backlash_z
-                }
-            }
-            None => y,
-        };
     }
 
     /// The sensor reading at experiment time `t_s` (before noise and quantization): the sensor's
@@ -728,9 +1012,43 @@ impl Plant {
     /// `t_s` before the start gives the start value; it must not lie beyond the simulated time.
     pub fn sensor_at(&self, t_s: f64) -> f64 {
         let t = t_s - self.fx.sensor_delay_s;
+        let window = self.fx.sensor_window_s;
+        let v = if window > 0.0 {
+            // The laser's moving average: trapezoids on the substep grid over the window.
+            let dt = self.sample_s / self.substeps as f64;
+            let n = (window / dt).ceil().max(1.0) as usize;
+            let step = window / n as f64;
+            let mut sum = 0.5 * (self.history_at(t - window) + self.history_at(t));
+            for k in 1..n {
+                sum += self.history_at(t - window + k as f64 * step);
+            }
+            sum / n as f64
+        } else {
+            self.history_at(t)
+        };
+        match self.fx.sensor_gain_change {
+            // The gain changes by g from the null to the ends of its linear range r.
+            Some((form, g, null, range)) => {
+                let u = (v - null) / range;
+                match form {
+                    // An LVDT's odd S-curve.
+                    0 => v + g / 3.0 * range * u * u * u,
+                    // A capacitive gap's even bow.
+                    1 => v + g / 2.0 * range * u * u,
+                    // A cyclic error of period r.
+                    _ => v + g * range / (2.0 * PI) * (2.0 * PI * u).sin(),
+                }
+            }
+            None => v,
+        }
+    }
+
+    /// The sensor's continuous output at `t_s`, linear between substeps; the start value before
+    /// the history, the last one after it.
+    fn history_at(&self, t_s: f64) -> f64 {
         let dt = self.sample_s / self.substeps as f64;
-        let pos = (t - self.history_t0_s) / dt;
-        let v = if pos <= 0.0 || self.history.len() < 2 {
+        let pos = (t_s - self.history_t0_s) / dt;
+        if pos <= 0.0 || self.history.len() < 2 {
             self.history.first().copied().unwrap_or(0.0)
         } else {
             let i = pos.floor() as usize;
@@ -740,22 +1058,14 @@ impl Plant {
                 let frac = pos - i as f64;
                 self.history[i] * (1.0 - frac) + self.history[i + 1] * frac
             }
-        };
-        match self.fx.sensor_gain_change {
-            // An odd (S-shaped) gain error about the sensor's null, as an LVDT has: the gain
-            // changes by g from the null to the ends of its linear range.
-            Some((g, null, range)) => {
-                let u = (v - null) / range;
-                v + g / 3.0 * range * u * u * u
-            }
-            None => v,
         }
     }
 
     /// Drops sensor history older than `keep_s` before the present (for long closed-loop runs).
     pub fn trim_history(&mut self, keep_s: f64) {
         let dt = self.sample_s / self.substeps as f64;
-        let keep = ((keep_s + self.fx.sensor_delay_s) / dt).ceil() as usize + 2;
+        let keep =
+            ((keep_s + self.fx.sensor_delay_s + self.fx.sensor_window_s) / dt).ceil() as usize + 2;
         if self.history.len() > 2 * keep {
             let drop = self.history.len() - keep;
             self.history.drain(..drop);
@@ -775,43 +1085,59 @@ pub const DEMAG_FLOOR_A_PER_M: f64 = 1.0;
 fn resolve(c: &PlantConstants, effects: &[Effect]) -> Resolved {
     let mut r = Resolved::default();
     for e in effects {
+        let form = e.form();
         match e.name() {
-            "eddy_frequency_dependence" => {
-                let share = e.get("share");
-                let f1 = e.get("first_corner_hz");
-                let n = (e.get("paths").round() as usize).clamp(3, BESSEL_J0_ZEROS.len());
-                let norm: f64 = BESSEL_J0_ZEROS[..n].iter().map(|j| 1.0 / (j * j)).sum();
-                // Σ 1/c1_k = (1/c1) share / (1 - share): conductances add (module docs).
-                let total_inv = share / (1.0 - share) / c.c1_per_m_s;
-                let j1 = BESSEL_J0_ZEROS[0];
-                r.paths = BESSEL_J0_ZEROS[..n]
-                    .iter()
-                    .map(|&j| {
-                        let inv_c1k = total_inv * (1.0 / (j * j)) / norm;
-                        let corner = f1 * (j / j1) * (j / j1);
-                        (inv_c1k, 1.0 / (2.0 * PI * corner))
-                    })
-                    .collect();
-            }
+            "eddy_frequency_dependence" => r.paths = eddy_paths(c, e),
             "amplifier_bandwidth" => {
                 r.amplifier = Some(Amplifier {
+                    form: match form {
+                        0 => AmplifierForm::SecondOrder,
+                        1 => AmplifierForm::FirstOrder,
+                        _ => AmplifierForm::PiLoop {
+                            tau_l: e.get("coil_time_constant_s"),
+                            v_lim: e.get("voltage_limit_a"),
+                        },
+                    },
                     omega: 2.0 * PI * e.get("natural_hz"),
                     zeta: e.get("damping_ratio"),
                     slew: e.get("slew_a_per_s"),
                 })
             }
             "sensor_dynamics" => {
-                r.sensor = Some(SensorFilter {
-                    omega: 2.0 * PI * e.get("natural_hz"),
-                    zeta: e.get("damping_ratio"),
-                });
+                let omega = 2.0 * PI * e.get("natural_hz");
+                match form {
+                    0 | 1 => {
+                        r.sensor = Some(SensorFilter {
+                            omega,
+                            zeta: if form == 0 {
+                                e.get("damping_ratio")
+                            } else {
+                                0.0
+                            },
+                            second_order: form == 0,
+                        })
+                    }
+                    // A boxcar of length T has its −3 dB point at 0.443 / T.
+                    _ => r.sensor_window_s = 0.443 / e.get("natural_hz"),
+                }
                 r.sensor_delay_s = e.get("delay_s");
             }
             "reversible_magnetization" => {
-                r.reversible = Some((e.get("susceptibility"), e.get("saturation_field_a_per_m")))
+                r.reversible = Some((
+                    form,
+                    e.get("susceptibility"),
+                    e.get("saturation_field_a_per_m"),
+                ))
             }
             "thermal_drift" => {
                 r.thermal = Some(Thermal {
+                    form: match form {
+                        0 => ThermalForm::Lumped,
+                        1 => ThermalForm::Distributed,
+                        _ => ThermalForm::VoltageLimited {
+                            compliance_a: e.get("compliance_a"),
+                        },
+                    },
                     rise: e.get("coil_rise_k_per_a2"),
                     tau_coil: e.get("coil_time_constant_s"),
                     tau_rod: e.get("rod_time_constant_s"),
@@ -821,39 +1147,140 @@ fn resolve(c: &PlantConstants, effects: &[Effect]) -> Resolved {
                 })
             }
             "delta_e_effect" => {
-                r.delta_e = Some((
-                    e.get("magnetization_stiffening"),
-                    e.get("stress_stiffening"),
-                ))
+                r.delta_e = Some(DeltaE {
+                    form: match form {
+                        0 => DeltaEForm::Quartic,
+                        1 => DeltaEForm::Cubic,
+                        _ => DeltaEForm::Field {
+                            h_s: e.get("field_scale_a_per_m"),
+                        },
+                    },
+                    d: e.get("magnetization_stiffening"),
+                    s: e.get("stress_stiffening"),
+                })
             }
             "mechanical_load" => {
                 let r2 = e.get("mass_ratio").max(1e-6);
+                let modes = form_modes(form);
+                // Each further mass is given relative to the one before.
+                let r3 = if modes >= 2 {
+                    r2 * e.get("second_mass_ratio")
+                } else {
+                    0.0
+                };
+                let r4 = if modes >= 3 {
+                    r3 * e.get("second_mass_ratio")
+                } else {
+                    0.0
+                };
+                let w3 = 2.0 * PI * e.get("second_coupling_hz");
                 r.load = Some(LoadModes {
+                    modes,
                     r2,
                     w2: 2.0 * PI * e.get("coupling_hz"),
                     z2: e.get("damping_ratio"),
-                    // The second mass is given relative to the first.
-                    r3: r2 * e.get("second_mass_ratio"),
-                    w3: 2.0 * PI * e.get("second_coupling_hz"),
+                    r3,
+                    w3,
                     z3: e.get("second_damping_ratio"),
+                    r4,
+                    w4: 1.7 * w3,
+                    z4: e.get("second_damping_ratio"),
                 })
             }
-            "backlash" => r.backlash_m = Some(e.get("width_m")),
+            "backlash" => {
+                r.backlash = Some(Backlash {
+                    form: match form {
+                        0 => BacklashForm::Play,
+                        1 => BacklashForm::Lagging {
+                            omega: 2.0 * PI * e.get("follower_hz"),
+                        },
+                        _ => BacklashForm::Smooth,
+                    },
+                    width_m: e.get("width_m"),
+                })
+            }
             "stick_slip" => {
                 let w2 = c.omega0_rad_per_s * c.omega0_rad_per_s;
                 let s = w2 * e.get("breakaway_m");
                 r.friction = Some(Friction {
+                    form: match form {
+                        0 => FrictionForm::Coulomb,
+                        1 => FrictionForm::Stribeck {
+                            speed_m_per_s: e.get("stribeck_speed_m_per_s"),
+                        },
+                        _ => FrictionForm::Dahl {
+                            presliding_m: e.get("presliding_m"),
+                        },
+                    },
                     static_accel: s,
                     kinetic_accel: s * e.get("kinetic_ratio"),
                 })
             }
-            "creep" => r.creep = Some((e.get("ratio"), e.get("time_constant_s"))),
+            "creep" => {
+                let tau0 = e.get("time_constant_s");
+                let (first, terms) = match form {
+                    0 => (tau0, 3),
+                    1 => (10.0 * tau0, 1),
+                    _ => (tau0, CREEP_TERMS),
+                };
+                let mut taus_s = [0.0; CREEP_TERMS];
+                for (k, t) in taus_s.iter_mut().take(terms).enumerate() {
+                    *t = first * 10f64.powi(k as i32);
+                }
+                r.creep = Some(Creep {
+                    ratio: e.get("ratio"),
+                    taus_s,
+                    terms,
+                });
+            }
             "sensor_nonlinearity" => {
-                r.sensor_gain_change =
-                    Some((e.get("gain_change"), e.get("null_m"), e.get("range_m")))
+                r.sensor_gain_change = Some((
+                    form,
+                    e.get("gain_change"),
+                    e.get("null_m"),
+                    e.get("range_m"),
+                ))
             }
             other => unreachable!("effect `{other}` has a spec but no plant form"),
         }
     }
     r
+}
+
+/// Load masses of each `mechanical_load` form.
+fn form_modes(form: usize) -> usize {
+    match form {
+        0 => 2,
+        1 => 1,
+        _ => 3,
+    }
+}
+
+/// `(1/c1_k, τ_k)` of the distributed eddy paths of `e`: the DC conductance share split among
+/// the modes of the rod's cross-section (cylinder, laminated slab, spread of skin depths).
+fn eddy_paths(c: &PlantConstants, e: &Effect) -> Vec<(f64, f64)> {
+    let share = e.get("share");
+    let f1 = e.get("first_corner_hz");
+    let n = (e.get("paths").round() as usize).clamp(3, BESSEL_J0_ZEROS.len());
+    // (corner relative to the first, relative conductance share) of mode k.
+    let modes: Vec<(f64, f64)> = (0..n)
+        .map(|k| match e.form() {
+            0 => {
+                let q = BESSEL_J0_ZEROS[k] / BESSEL_J0_ZEROS[0];
+                (q * q, 1.0 / (q * q))
+            }
+            1 => {
+                let q = (2 * k + 1) as f64;
+                (q * q, 1.0 / (q * q))
+            }
+            _ => (4f64.powi(k as i32), 1.0),
+        })
+        .collect();
+    let norm: f64 = modes.iter().map(|m| m.1).sum();
+    // Σ 1/c1_k = (1/c1) share / (1 - share): conductances add (module docs).
+    let total_inv = share / (1.0 - share) / c.c1_per_m_s;
+    modes
+        .iter()
+        .map(|&(corner, weight)| (total_inv * weight / norm, 1.0 / (2.0 * PI * f1 * corner)))
+        .collect()
 }

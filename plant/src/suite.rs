@@ -65,6 +65,68 @@ impl Design {
     }
 }
 
+/// Which physical forms of its effects a case draws ([`crate::effects::EffectSpec::forms`]),
+/// from a stream of its own (the same seed gives the same kind, nuisances, start and shape draws
+/// in every form set).
+///
+/// The diagnosis's rules are chosen on [`Forms::Tuning`] (forms 0 and 1 of every effect) and
+/// scored on [`Forms::HeldOut`] (form 2, which no rule was chosen on); [`Forms::Original`] is
+/// form 0 only, the plant the first rules were chosen on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Forms {
+    /// Form 0 of every effect.
+    Original,
+    /// Forms 0 and 1, drawn per effect.
+    Tuning,
+    /// Form 2 of every effect.
+    HeldOut,
+    /// Any form, drawn per effect.
+    All,
+}
+
+impl Forms {
+    /// Parses `original`, `tuning`, `held-out` or `all`.
+    pub fn parse(s: &str) -> Result<Forms, String> {
+        match s {
+            "original" => Ok(Forms::Original),
+            "tuning" => Ok(Forms::Tuning),
+            "held-out" => Ok(Forms::HeldOut),
+            "all" => Ok(Forms::All),
+            other => Err(format!(
+                "form set `{other}`: expected `original`, `tuning`, `held-out` or `all`"
+            )),
+        }
+    }
+
+    /// The form set named by the environment variable `name` (e.g. `BLIND_FORMS`);
+    /// [`Forms::Original`] when it is unset.
+    pub fn from_env(name: &str) -> Result<Forms, String> {
+        std::env::var(name).map_or(Ok(Forms::Original), |s| {
+            Forms::parse(&s).map_err(|e| format!("{name}: {e}"))
+        })
+    }
+
+    /// The set's name as [`Forms::parse`] reads it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Forms::Original => "original",
+            Forms::Tuning => "tuning",
+            Forms::HeldOut => "held-out",
+            Forms::All => "all",
+        }
+    }
+
+    /// The form of one effect, drawn from `rng` among the set's.
+    fn draw(&self, rng: &mut impl Rng) -> usize {
+        match self {
+            Forms::Original => 0,
+            Forms::Tuning => rng.random_range(0..2),
+            Forms::HeldOut => 2,
+            Forms::All => rng.random_range(0..3),
+        }
+    }
+}
+
 /// What a case contains.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Kind {
@@ -133,7 +195,12 @@ pub struct Case {
     /// The rod's own Preisach measure (`crate::rods`), when the case is drawn on one instead of
     /// the parameter file's grid and masses ([`draw_on`]).
     pub rod: Option<Rod>,
+    /// The form set its effects' forms were drawn from.
+    pub forms: Forms,
 }
+
+/// Seeds the forms' stream (`seed ^ FORM_STREAM`), apart from the case's own.
+const FORM_STREAM: u64 = 0x0f0e_5eed_f04d_0001;
 
 impl Case {
     /// One line describing the case.
@@ -202,9 +269,41 @@ fn log_uniform(rng: &mut impl Rng, lo: f64, hi: f64) -> f64 {
     (rng.random_range(lo.ln()..hi.ln())).exp()
 }
 
-/// Draws the shape parameters of `name` (not its magnitude).
-fn shaped(name: &str, rng: &mut impl Rng) -> Result<Effect, String> {
-    let e = Effect::default_for(name)?;
+/// Draws the shape parameters of `name` (not its magnitude) in `form`: those every form reads
+/// from `rng`, those of one form only from `form_rng` (so that form 0's cases stay what they
+/// were before the other forms existed). `peak_current_a` is the largest command of the
+/// experiments (a voltage-limited amplifier's compliance lies a few % above it, so that it is
+/// reached once the coil warms); `eddy_rate_per_s` is the rod's `c1/c0` (a PI loop's coil sees
+/// the rod's eddy resistance reflected as `κ = τ_L c1/c0` times its own, so its voltage limit is
+/// sized on `(1 + κ)` times the peak current: it binds in fast transients, not at every peak).
+fn shaped(
+    name: &str,
+    form: usize,
+    (peak_current_a, eddy_rate_per_s): (f64, f64),
+    rng: &mut impl Rng,
+    form_rng: &mut impl Rng,
+) -> Result<Effect, String> {
+    let e = Effect::default_for(name)?.with("form", form as f64)?;
+    let e = match name {
+        "amplifier_bandwidth" => {
+            let tau_l_s = log_uniform(form_rng, 1e-4, 1e-3);
+            let kappa = tau_l_s * eddy_rate_per_s;
+            e.with("coil_time_constant_s", tau_l_s)?.with(
+                "voltage_limit_a",
+                (peak_current_a * (1.0 + kappa) * form_rng.random_range(1.0..2.0)).clamp(1.0, 1e4),
+            )?
+        }
+        "thermal_drift" => e.with(
+            "compliance_a",
+            (peak_current_a * form_rng.random_range(1.02..1.08)).clamp(0.1, 100.0),
+        )?,
+        "delta_e_effect" => e.with("field_scale_a_per_m", log_uniform(form_rng, 5e3, 2e4))?,
+        "backlash" => e.with("follower_hz", log_uniform(form_rng, 1e3, 5e3))?,
+        "stick_slip" => e
+            .with("stribeck_speed_m_per_s", log_uniform(form_rng, 3e-4, 3e-3))?
+            .with("presliding_m", log_uniform(form_rng, 0.05e-6, 0.5e-6))?,
+        _ => e,
+    };
     Ok(match name {
         "eddy_frequency_dependence" => e
             .with("first_corner_hz", log_uniform(rng, 80.0, 600.0))?
@@ -556,19 +655,22 @@ pub fn draw_with(
     kind: Kind,
     design: Design,
 ) -> Result<Case, String> {
-    draw_on(params, None, seed, kind, design)
+    draw_on(params, None, seed, kind, design, Forms::Original)
 }
 
 /// [`draw_with`] on `rod`'s own Preisach measure (the parameter file's constants, the rod's
-/// measure on the plant's grid: `crate::rods`); the effects are calibrated on that plant.
+/// measure on the plant's grid: `crate::rods`), each effect in a form of `forms`; the effects
+/// are calibrated on that plant.
 pub fn draw_on(
     params: &ActuatorParams,
     rod: Option<&Rod>,
     seed: u64,
     kind: Kind,
     design: Design,
+    forms: Forms,
 ) -> Result<Case, String> {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut form_rng = rand::rngs::StdRng::seed_from_u64(seed ^ FORM_STREAM);
     let varied = (design == Design::Varied).then(|| varied_design(seed));
     let settings = BenchSettings {
         rate_hz: varied.as_ref().map_or(10_000.0, |v| v.0),
@@ -647,13 +749,26 @@ pub fn draw_on(
     } else {
         GapRuns::new(params, rod, &[], &experiments, &settings)?
     };
+    let peak_current_a = experiments
+        .iter()
+        .flat_map(|e| e.current_a.iter())
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let constants = crate::PlantConstants::from_params(params);
+    let eddy_rate_per_s = constants.c1_per_m_s / constants.c0_per_m;
     for name in names {
+        let form = forms.draw(&mut form_rng);
         let target = log_uniform(&mut rng, lo, hi);
         // An effect whose plausible range cannot reach the target gets a new shape (up to eight
         // draws; then the one that came closest is kept).
         let mut result: Option<(Effect, f64)> = None;
         for _ in 0..8 {
-            let e = shaped(name, &mut rng)?;
+            let e = shaped(
+                name,
+                form,
+                (peak_current_a, eddy_rate_per_s),
+                &mut rng,
+                &mut form_rng,
+            )?;
             let (e, g) = calibrate(params, rod, &e, target, &experiments, &settings, &without)?;
             let reached = g >= 0.9 * target;
             if result.as_ref().is_none_or(|(_, best)| g > *best) {
@@ -694,6 +809,7 @@ pub fn draw_on(
         design,
         sweep,
         rod: rod.cloned(),
+        forms,
     })
 }
 

@@ -127,6 +127,7 @@
 //! parameter may be pinned at a physical limit of its range ([`maglab_model::candidates::Edge`]): an
 //! explanation that needs an implausible effect is none.
 
+pub mod grade;
 mod pairs;
 mod recording;
 mod refit;
@@ -429,12 +430,39 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
             .chain(additional_effects.iter().map(String::as_str))
             .collect::<Vec<_>>(),
     );
+    let graded = grade::grade(
+        &name,
+        &additional_effects,
+        &ranked.iter().map(|r| r.0.clone()).collect::<Vec<_>>(),
+        rec.noise_m,
+        rec.range_m,
+    );
+    if let Some(p) = &graded.partly {
+        reason = format!(
+            "{reason}; partly explained by {} ({:.0} ± {:.0} % of the gap's energy, at least \
+             {:.0} % in every held-out band), the rest unexplained",
+            p.effect,
+            100.0 * p.share_of_gap,
+            100.0 * p.share_spread,
+            100.0 * p.lowest_band_share
+        );
+    }
+    if let [a, b] = graded.either.as_slice() {
+        reason = format!(
+            "{reason}; {a} or {b}: {b} fits the held-out experiments within \
+             {:.0} % as well, these experiments cannot separate them",
+            100.0 * (rules::AMBIGUOUS_HELD_OUT - 1.0)
+        );
+    }
     // (A `none` the parameter file's own effects replaced above is not `none`.)
     let none_by_model_error = verdict.none_by_model_error && name == "none";
     DiagnosisRun {
         diagnosis: Diagnosis {
             verdict: name,
             verdict_reason: reason,
+            grade: graded.grade,
+            partly_explained: graded.partly,
+            either: graded.either,
             ambiguous_with,
             equal_on_training,
             held_out_tie,

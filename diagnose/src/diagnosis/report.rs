@@ -108,6 +108,16 @@ pub struct Diagnosis {
     pub verdict: String,
     /// Why, in one sentence.
     pub verdict_reason: String,
+    /// How much of the gap the verdict accounts for ([`super::grade`]): `none`, `effect`,
+    /// `pair`, `either` ("X or Y"), `partly_explained` (with [`Diagnosis::partly_explained`]) or
+    /// `unexplained`.
+    pub grade: super::grade::Grade,
+    /// For the grade `partly_explained`: the effect, its share of the gap and the share's spread
+    /// over the held-out bands; the verdict stays `unexplained` (the rest is).
+    pub partly_explained: Option<super::grade::PartialExplanation>,
+    /// For the grade `either`: the verdict's effect and the one the experiments cannot separate
+    /// from it.
+    pub either: Vec<String>,
     /// Candidates whose held-out error is within 10 % of the winner's.
     pub ambiguous_with: Vec<String>,
     /// Significant single candidates whose training RMS is within [`super::rules::EQUAL_ON_TRAINING`] of a

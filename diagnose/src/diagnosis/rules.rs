@@ -38,6 +38,11 @@ pub const WORSE_RMS_FACTOR: f64 = 1.05;
 /// [`WORSE_RMS_FACTOR`] (below it the change is within the scatter of a held-out RMS).
 pub const WORSE_NOISE_SHARE: f64 = 0.1;
 
+/// An `unexplained` verdict is graded *partly explained* by a candidate that removes more than
+/// this share of the gap's energy in every held-out band ([`super::grade`]): its part is larger
+/// than the rest. Definitional (more than half), not fitted to cases.
+pub const PARTIAL_SHARE: f64 = 0.5;
+
 /// The second stage pairs the best this many single candidates (six pairs; up to two band-best
 /// candidates join them): more pairs cost a fit each and give a wrong pair more chances.
 pub const PAIR_CANDIDATES: usize = 4;

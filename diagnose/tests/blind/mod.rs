@@ -13,6 +13,8 @@ pub struct Outcome {
     pub case: Case,
     pub named: Vec<String>,
     pub correct: bool,
+    /// Right under the graded scoring ([`graded_right`]).
+    pub graded_correct: bool,
     pub seconds: f64,
     pub diagnosis: Diagnosis,
 }
@@ -68,6 +70,7 @@ pub fn run_case(
     let expected: Vec<String> = case.kind.expected().iter().map(|s| s.to_string()).collect();
     Outcome {
         correct: named == expected,
+        graded_correct: graded_right(&case.kind, &named, &d),
         named,
         seconds,
         diagnosis: d,
@@ -75,10 +78,98 @@ pub fn run_case(
     }
 }
 
+/// The graded scoring (issue's rule): a verdict is right when the truth is in it and it names at
+/// most two effects. A single effect X: X named alone or in a pair, "partly explained by X", or
+/// "X or Y"; a pair: both named; an out-of-library effect: `unexplained` (in either of its
+/// grades: no library effect named as the explanation); noise only: `none`.
+pub fn graded_right(kind: &Kind, named: &[String], d: &Diagnosis) -> bool {
+    use maglab_diagnose::diagnosis::grade::Grade;
+    match kind {
+        Kind::Single(e) => {
+            (named.len() <= 2 && named.iter().any(|n| n == e))
+                || d.partly_explained.as_ref().is_some_and(|p| p.effect == *e)
+                || d.either.iter().any(|n| n == e)
+        }
+        Kind::Pair(..) => {
+            let mut expected: Vec<String> = kind.expected().iter().map(|s| s.to_string()).collect();
+            expected.sort();
+            named == expected.as_slice()
+        }
+        Kind::OutOfLibrary(_) => d.verdict == "unexplained",
+        Kind::NoiseOnly => d.verdict == "none" && d.grade == Grade::None,
+    }
+}
+
+/// What the verdict said, graded: `X`, `X+Y`, `partly X`, `X or Y`, `unexplained`, `none`.
+pub fn graded_label(o: &Outcome) -> String {
+    let d = &o.diagnosis;
+    if let Some(p) = &d.partly_explained {
+        format!("partly {}", p.effect)
+    } else if let [a, b] = d.either.as_slice() {
+        format!("{a} or {b}")
+    } else {
+        o.named.join("+")
+    }
+}
+
+/// Right per kind of case, strict and graded, and how often each grade was given, as Markdown.
+pub fn summary(outcomes: &[Outcome]) -> String {
+    let class = |k: &Kind| match k {
+        Kind::Single(_) => "single library effect",
+        Kind::Pair(..) => "pair",
+        Kind::OutOfLibrary(_) => "outside the library",
+        Kind::NoiseOnly => "noise only",
+    };
+    let mut s =
+        String::from("| kind | cases | right (strict) | right (graded) |\n|---|---|---|---|\n");
+    for c in [
+        "single library effect",
+        "pair",
+        "outside the library",
+        "noise only",
+    ] {
+        let of: Vec<&Outcome> = outcomes
+            .iter()
+            .filter(|o| class(&o.case.kind) == c)
+            .collect();
+        s.push_str(&format!(
+            "| {c} | {} | {} | {} |\n",
+            of.len(),
+            of.iter().filter(|o| o.correct).count(),
+            of.iter().filter(|o| o.graded_correct).count()
+        ));
+    }
+    let mut grades: std::collections::BTreeMap<&str, usize> = Default::default();
+    for o in outcomes {
+        *grades.entry(o.diagnosis.grade.name()).or_default() += 1;
+    }
+    s.push_str(&format!(
+        "\ngrades given: {}\n",
+        grades
+            .iter()
+            .map(|(g, n)| format!("{g} {n}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    let graded = outcomes.iter().filter(|o| o.graded_correct).count();
+    s.push_str(&format!(
+        "{graded}/{} right graded ({:.0} %)\n",
+        outcomes.len(),
+        100.0 * graded as f64 / outcomes.len().max(1) as f64
+    ));
+    s
+}
+
 /// The experiment design from `BLIND_DESIGN` (`standard`, the default, or `varied`:
 /// `maglab_plant::suite::Design`).
 pub fn design_from_env() -> suite::Design {
     suite::Design::from_env("BLIND_DESIGN").unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The effects' form set from `BLIND_FORMS` (`original`, the default, `tuning`, `held-out` or
+/// `all`: `maglab_plant::suite::Forms`).
+pub fn forms_from_env() -> suite::Forms {
+    suite::Forms::from_env("BLIND_FORMS").unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The rod of case `i` in the rod mode (`BLIND_RODS=families`): the four families in turn, their
@@ -147,6 +238,7 @@ pub fn identified_nominal(
 pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
     let params = actuator_params::paper_defaults();
     let design = design_from_env();
+    let forms = forms_from_env();
     let rods = rods_from_env();
     // One identification per distinct rod (the cases of a rod share its nominal file).
     let nominals: std::sync::Mutex<
@@ -173,6 +265,7 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
                     seed.wrapping_mul(1000).wrapping_add(i as u64),
                     kind.clone(),
                     design,
+                    forms,
                 )
                 .expect("the case is drawn");
                 let nominal = match &rod {
@@ -238,7 +331,7 @@ pub fn confusion_matrix(outcomes: &[Outcome]) -> String {
     };
     let col_of = |o: &Outcome| match &o.case.kind {
         Kind::Pair(..) if o.correct => "both of the pair".to_string(),
-        _ => o.named.join("+"),
+        _ => graded_label(o),
     };
     let mut rows: Vec<String> = Vec::new();
     let mut cols: Vec<String> = Vec::new();

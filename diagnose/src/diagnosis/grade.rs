@@ -1,0 +1,259 @@
+//! The verdict's grade: how much of the gap the named effects account for, and whether the
+//! experiments can tell the named effect from another.
+//!
+//! | grade | when | what it claims |
+//! |---|---|---|
+//! | `none` | the verdict is `none` | the gap is within the noise or the model's own error |
+//! | `effect` | one significant effect, no other as good | that effect explains the gap |
+//! | `pair` | a pair named (step 8) | both effects are needed |
+//! | `either` | a significant single winner and another significant candidate within [`AMBIGUOUS_HELD_OUT`] of its held-out error | "X or Y": these experiments cannot separate them |
+//! | `partly_explained` | no effect explains the gap, but one removes more than half of its energy in every held-out band, and more than half of what its own fit leaves with the effect switched off | "partly explained by X (share ± spread), the rest unexplained" |
+//! | `unexplained` | none of these | no library effect accounts for most of the gap |
+//!
+//! The share threshold ([`PARTIAL_SHARE`]) is definitional, not fitted to cases: a part larger
+//! than the rest, in every held-out band (a share that holds in one band only is the refit
+//! trading bands, not an effect). Its spread is half the range of the per-band shares.
+
+use super::report::CandidateResult;
+use super::rules::{resolution_floor, AMBIGUOUS_HELD_OUT, MAX_WORSE_SHARE, PARTIAL_SHARE};
+use serde::Serialize;
+
+/// The grade of a verdict (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Grade {
+    /// Within the noise.
+    None,
+    /// One effect.
+    Effect,
+    /// Two effects, both needed.
+    Pair,
+    /// One of two effects the experiments cannot separate.
+    Either,
+    /// One effect accounts for most of the gap, the rest is unexplained.
+    PartlyExplained,
+    /// No library effect accounts for most of the gap.
+    Unexplained,
+}
+
+impl Grade {
+    /// The grade's name as `diagnosis.json` writes it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Grade::None => "none",
+            Grade::Effect => "effect",
+            Grade::Pair => "pair",
+            Grade::Either => "either",
+            Grade::PartlyExplained => "partly_explained",
+            Grade::Unexplained => "unexplained",
+        }
+    }
+}
+
+/// The part of the gap one effect accounts for when it does not explain all of it.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct PartialExplanation {
+    /// The effect.
+    pub effect: String,
+    /// Share of the refitted nominal model's held-out systematic gap energy it removes.
+    pub share_of_gap: f64,
+    /// Half the range of that share over the held-out bands.
+    pub share_spread: f64,
+    /// The smallest share of any held-out band.
+    pub lowest_band_share: f64,
+}
+
+/// What [`grade`] decided.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Graded {
+    /// The grade.
+    pub grade: Grade,
+    /// For [`Grade::PartlyExplained`].
+    pub partly: Option<PartialExplanation>,
+    /// For [`Grade::Either`]: the two effects, the verdict's first.
+    pub either: Vec<String>,
+}
+
+/// Grades `verdict` (with `additional_effects`) from the single candidates `ranking` (best
+/// first); `noise_m`, `range_m` as the diagnosis measured them.
+pub fn grade(
+    verdict: &str,
+    additional_effects: &[String],
+    ranking: &[CandidateResult],
+    noise_m: f64,
+    range_m: f64,
+) -> Graded {
+    let graded = |grade| Graded {
+        grade,
+        partly: None,
+        either: Vec::new(),
+    };
+    match verdict {
+        "none" => graded(Grade::None),
+        "unexplained" => match partial(ranking, noise_m, range_m) {
+            Some(p) => Graded {
+                grade: Grade::PartlyExplained,
+                partly: Some(p),
+                either: Vec::new(),
+            },
+            None => graded(Grade::Unexplained),
+        },
+        _ if !additional_effects.is_empty() => graded(Grade::Pair),
+        winner => match rival(winner, ranking) {
+            Some(other) => Graded {
+                grade: Grade::Either,
+                partly: None,
+                either: vec![winner.to_string(), other],
+            },
+            None => graded(Grade::Effect),
+        },
+    }
+}
+
+/// The best other significant candidate within [`AMBIGUOUS_HELD_OUT`] of `winner`'s held-out
+/// error.
+fn rival(winner: &str, ranking: &[CandidateResult]) -> Option<String> {
+    let w = ranking.iter().find(|c| c.effect == winner)?;
+    ranking
+        .iter()
+        .filter(|c| c.effect != winner && c.significant)
+        .find(|c| c.held_out_rms_after_m <= AMBIGUOUS_HELD_OUT * w.held_out_rms_after_m)
+        .map(|c| c.effect.clone())
+}
+
+/// The systematic part of an RMS error `rms_m` over noise `noise_m`, squared.
+fn systematic_energy(rms_m: f64, noise_m: f64) -> f64 {
+    (rms_m * rms_m - noise_m * noise_m).max(0.0)
+}
+
+/// The best candidate (held-out order) that accounts for more than [`PARTIAL_SHARE`] of the gap
+/// in every held-out band whose gap is above the estimate's resolution, and of what its fit
+/// leaves without its effect; nothing pinned, at most [`MAX_WORSE_SHARE`] of the held-out
+/// experiments worse.
+fn partial(ranking: &[CandidateResult], noise_m: f64, range_m: f64) -> Option<PartialExplanation> {
+    let floor = resolution_floor(noise_m, range_m);
+    ranking.iter().find_map(|c| {
+        if !c.pinned.is_empty()
+            || c.worse_experiments as f64 > MAX_WORSE_SHARE * c.held_out_experiments as f64
+        {
+            return None;
+        }
+        let before = c.systematic_before_m * c.systematic_before_m;
+        let after = c.systematic_after_m * c.systematic_after_m;
+        let knocked_out = systematic_energy(c.knocked_out_rms_m, noise_m);
+        if before <= 0.0 || knocked_out <= 0.0 {
+            return None;
+        }
+        let share = 1.0 - after / before;
+        let own = 1.0 - after / knocked_out;
+        let bands: Vec<f64> = c
+            .per_band
+            .iter()
+            .filter(|b| b.held_out && systematic_energy(b.before_m, noise_m) > floor * floor)
+            .map(|b| {
+                1.0 - systematic_energy(b.after_m, noise_m) / systematic_energy(b.before_m, noise_m)
+            })
+            .collect();
+        let lowest = bands.iter().cloned().fold(f64::INFINITY, f64::min);
+        let highest = bands.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        (!bands.is_empty()
+            && share > PARTIAL_SHARE
+            && own > PARTIAL_SHARE
+            && lowest > PARTIAL_SHARE)
+            .then(|| PartialExplanation {
+                effect: c.effect.clone(),
+                share_of_gap: share,
+                share_spread: 0.5 * (highest - lowest),
+                lowest_band_share: lowest,
+            })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnosis::report::BandError;
+
+    fn candidate(
+        effect: &str,
+        after_m: f64,
+        bands: &[(f64, f64)],
+        significant: bool,
+    ) -> CandidateResult {
+        CandidateResult {
+            effect: effect.into(),
+            parameters: Default::default(),
+            training_rms_m: 1e-7,
+            held_out_rms_before_m: 1e-6,
+            held_out_rms_after_m: after_m,
+            held_out_reduction: 1e-6 / after_m,
+            systematic_before_m: 1e-6,
+            systematic_after_m: after_m,
+            improved_experiments: 2,
+            worse_experiments: 0,
+            held_out_experiments: 2,
+            knocked_out_rms_m: 1e-6,
+            pinned: Vec::new(),
+            constants_at_range_end: Vec::new(),
+            significant,
+            per_band: bands
+                .iter()
+                .map(|&(before_m, after_m)| BandError {
+                    frequency_hz: 100.0,
+                    before_m,
+                    after_m,
+                    held_out: true,
+                })
+                .collect(),
+            evaluations: 1,
+        }
+    }
+
+    #[test]
+    fn partly_explained_needs_more_than_half_in_every_band() {
+        // Removes 75 % of the energy overall and in both bands.
+        let c = candidate("creep", 0.5e-6, &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)], false);
+        let g = grade("unexplained", &[], std::slice::from_ref(&c), 0.0, 1e-4);
+        assert_eq!(g.grade, Grade::PartlyExplained);
+        let p = g.partly.unwrap();
+        assert!((p.share_of_gap - 0.75).abs() < 1e-12, "{p:?}");
+        // One band barely helped: unexplained.
+        let c = candidate("creep", 0.5e-6, &[(1e-6, 0.2e-6), (1e-6, 0.9e-6)], false);
+        assert_eq!(
+            grade("unexplained", &[], &[c], 0.0, 1e-4).grade,
+            Grade::Unexplained
+        );
+        // A pinned parameter is no explanation, even in part.
+        let mut c = candidate("creep", 0.5e-6, &[(1e-6, 0.5e-6)], false);
+        c.pinned.push("ratio".into());
+        assert_eq!(
+            grade("unexplained", &[], &[c], 0.0, 1e-4).grade,
+            Grade::Unexplained
+        );
+    }
+
+    #[test]
+    fn either_when_another_significant_candidate_is_as_good() {
+        let a = candidate("sensor_dynamics", 1.0e-7, &[], true);
+        let b = candidate("amplifier_bandwidth", 1.05e-7, &[], true);
+        let c = candidate("mechanical_load", 1.5e-7, &[], true);
+        let g = grade(
+            "sensor_dynamics",
+            &[],
+            &[a.clone(), b, c.clone()],
+            0.0,
+            1e-4,
+        );
+        assert_eq!(g.grade, Grade::Either);
+        assert_eq!(g.either, ["sensor_dynamics", "amplifier_bandwidth"]);
+        assert_eq!(
+            grade("sensor_dynamics", &[], &[a.clone(), c], 0.0, 1e-4).grade,
+            Grade::Effect
+        );
+        assert_eq!(
+            grade("sensor_dynamics", &["creep".into()], &[a], 0.0, 1e-4).grade,
+            Grade::Pair
+        );
+        assert_eq!(grade("none", &[], &[], 0.0, 1e-4).grade, Grade::None);
+    }
+}
