@@ -907,10 +907,7 @@ impl Plant {
                 )
             });
             if !current_is_state {
-                let x = std::mem::take(&mut self.x);
-                let (i, _) = self.coil_current(cmd(f1), &x);
-                self.x = x;
-                self.x[I_COIL] = i;
+                self.x[I_COIL] = self.coil_current(cmd(f1), &self.x).0;
             }
             self.commit(w.x0[V1], w.x0[Y1]);
             self.t_s += dt;
