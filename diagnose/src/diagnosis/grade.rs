@@ -6,17 +6,47 @@
 //! | `none` | the verdict is `none` | the gap is within the noise or the model's own error |
 //! | `effect` | one significant effect, no other as good | that effect explains the gap |
 //! | `pair` | a pair named (step 8) | both effects are needed |
-//! | `either` | a significant single winner and another significant candidate within [`AMBIGUOUS_HELD_OUT`] of its held-out error | "X or Y": these experiments cannot separate them |
+//! | `either` | a significant single winner and another significant candidate within [`AMBIGUOUS_HELD_OUT`] of its held-out error, or a winner whose term another effect enters as well ([`SAME_TERM`]) | "X or Y": these experiments cannot separate them |
 //! | `partly_explained` | no effect explains the gap, but one removes more than half of its energy in every held-out band, and more than half of what its own fit leaves with the effect switched off | "partly explained by X (share ± spread), the rest unexplained" |
 //! | `unexplained` | none of these | no library effect accounts for most of the gap |
 //!
 //! The share threshold ([`PARTIAL_SHARE`]) is definitional, not fitted to cases: a part larger
 //! than the rest, in every held-out band (a share that holds in one band only is the refit
 //! trading bands, not an effect). Its spread is half the range of the per-band shares.
+//!
+//! # Effects that enter the same term
+//!
+//! Some pairs cannot be separated by any displacement record, whatever the fits say: a current
+//! amplifier whose loop yields to the rod's back-EMF. The coil's voltage is
+//! `v = R i + L_w w'` with `w = H + M` the rod's flux (per μ0 N A), and the eddy ODE (4) reads
+//! `w' = c1 (i − H/c0)`. A current loop of finite gain leaves an error that the back-EMF drives,
+//! `i = i_cmd − G(s) w'` (`G` the loop's disturbance sensitivity: `s τ_L / (s + ω_c)` for a PI
+//! loop with its zero on the coil's pole, crossover `ω_c`). Substituted into (4):
+//!
+//! ```text
+//! (1 + c1 G(s)) w' = c1 (i_cmd − H/c0)
+//! ```
+//!
+//! the eddy ODE with a frequency-dependent `c1` — the `eddy_frequency_dependence` candidate's
+//! form (a second eddy path is a frequency-dependent `R_eddy`). With the commanded current the
+//! only current a dataset holds, an `eddy_frequency_dependence` verdict is therefore always
+//! "eddy_frequency_dependence or amplifier_bandwidth"; the measured coil current separates them
+//! (the eddy path leaves it equal to the command, the loop does not). The converse does not
+//! hold: the library's amplifier (a lag on the command, independent of the rod) is not in the
+//! eddy candidate's form, and the fits separate the two.
 
 use super::report::CandidateResult;
 use super::rules::{resolution_floor, AMBIGUOUS_HELD_OUT, MAX_WORSE_SHARE, PARTIAL_SHARE};
 use serde::Serialize;
+
+/// Winners whose term of the model another effect enters as well (module docs), with that
+/// effect and why, for datasets that record the commanded current only.
+pub const SAME_TERM: [(&str, &str, &str); 1] = [(
+    "eddy_frequency_dependence",
+    "amplifier_bandwidth",
+    "a current loop that yields to the rod's back-EMF acts on the same H' + M' term of the \
+     eddy ODE (4) as a frequency-dependent R_eddy; only a measured coil current separates them",
+)];
 
 /// The grade of a verdict (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -72,6 +102,8 @@ pub struct Graded {
     pub partly: Option<PartialExplanation>,
     /// For [`Grade::Either`]: the two effects, the verdict's first.
     pub either: Vec<String>,
+    /// For [`Grade::Either`]: why the experiments cannot separate them.
+    pub either_reason: String,
 }
 
 /// Grades `verdict` (with `additional_effects`) from the single candidates `ranking` (best
@@ -87,6 +119,7 @@ pub fn grade(
         grade,
         partly: None,
         either: Vec::new(),
+        either_reason: String::new(),
     };
     match verdict {
         "none" => graded(Grade::None),
@@ -94,18 +127,28 @@ pub fn grade(
             Some(p) => Graded {
                 grade: Grade::PartlyExplained,
                 partly: Some(p),
-                either: Vec::new(),
+                ..graded(Grade::PartlyExplained)
             },
             None => graded(Grade::Unexplained),
         },
         _ if !additional_effects.is_empty() => graded(Grade::Pair),
         winner => match rival(winner, ranking) {
             Some(other) => Graded {
-                grade: Grade::Either,
-                partly: None,
-                either: vec![winner.to_string(), other],
+                either: vec![winner.to_string(), other.clone()],
+                either_reason: format!(
+                    "{other} fits the held-out experiments within {:.0} % as well",
+                    100.0 * (AMBIGUOUS_HELD_OUT - 1.0)
+                ),
+                ..graded(Grade::Either)
             },
-            None => graded(Grade::Effect),
+            None => match SAME_TERM.iter().find(|(w, ..)| *w == winner) {
+                Some((_, other, why)) => Graded {
+                    either: vec![winner.to_string(), other.to_string()],
+                    either_reason: why.to_string(),
+                    ..graded(Grade::Either)
+                },
+                None => graded(Grade::Effect),
+            },
         },
     }
 }
@@ -255,5 +298,31 @@ mod tests {
             Grade::Pair
         );
         assert_eq!(grade("none", &[], &[], 0.0, 1e-4).grade, Grade::None);
+    }
+
+    #[test]
+    fn an_eddy_path_is_either_it_or_a_current_loop_yielding_to_the_back_emf() {
+        let eddy = candidate("eddy_frequency_dependence", 1.0e-7, &[], true);
+        let amp = candidate("amplifier_bandwidth", 5.0e-7, &[], false);
+        let g = grade(
+            "eddy_frequency_dependence",
+            &[],
+            &[eddy.clone(), amp.clone()],
+            0.0,
+            1e-4,
+        );
+        assert_eq!(g.grade, Grade::Either);
+        assert_eq!(
+            g.either,
+            ["eddy_frequency_dependence", "amplifier_bandwidth"]
+        );
+        assert!(g.either_reason.contains("back-EMF"), "{}", g.either_reason);
+        // Not the converse: the library's amplifier is a lag on the command the fits separate.
+        let amp = candidate("amplifier_bandwidth", 1.0e-7, &[], true);
+        let eddy = candidate("eddy_frequency_dependence", 5.0e-7, &[], false);
+        assert_eq!(
+            grade("amplifier_bandwidth", &[], &[amp, eddy], 0.0, 1e-4).grade,
+            Grade::Effect
+        );
     }
 }

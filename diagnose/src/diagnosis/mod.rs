@@ -449,9 +449,8 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
     }
     if let [a, b] = graded.either.as_slice() {
         reason = format!(
-            "{reason}; {a} or {b}: {b} fits the held-out experiments within \
-             {:.0} % as well, these experiments cannot separate them",
-            100.0 * (rules::AMBIGUOUS_HELD_OUT - 1.0)
+            "{reason}; {a} or {b}: {}, these experiments cannot separate them",
+            graded.either_reason
         );
     }
     // (A `none` the parameter file's own effects replaced above is not `none`.)

@@ -377,3 +377,44 @@ pub fn confusion_matrix(outcomes: &[Outcome]) -> String {
     ));
     s
 }
+
+/// One-sided upper bound at confidence `1 − alpha` on a rate of which `k` of `n` trials were
+/// seen (Clopper–Pearson: the `p` at which `P(X ≤ k; n, p) = alpha`), by bisection.
+pub fn upper_bound(k: usize, n: usize, alpha: f64) -> f64 {
+    let cdf = |p: f64| {
+        // P(X ≤ k) for X ~ Binomial(n, p), summed term by term.
+        let mut term = (1.0 - p).powi(n as i32);
+        let mut sum = term;
+        for i in 0..k {
+            term *= (n - i) as f64 / (i + 1) as f64 * p / (1.0 - p);
+            sum += term;
+        }
+        sum
+    };
+    if k >= n {
+        return 1.0;
+    }
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if cdf(mid) > alpha {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+#[cfg(test)]
+mod upper_bound_tests {
+    #[test]
+    fn the_bound_for_no_alarms_is_the_rule_of_three() {
+        // k = 0: 1 − 0.05^(1/n) ≈ 3/n.
+        let b = super::upper_bound(0, 100, 0.05);
+        assert!((b - (1.0 - 0.05_f64.powf(0.01))).abs() < 1e-9, "{b}");
+        // k = n/2 of a large n sits just above one half.
+        let b = super::upper_bound(500, 1000, 0.05);
+        assert!(b > 0.5 && b < 0.53, "{b}");
+    }
+}
