@@ -1,5 +1,6 @@
 //! One blind-suite case in detail: `cargo run --release -p maglab-diagnose --example suite_case
-//! -- SEED INDEX [COUNT]` (`BLIND_DESIGN=varied`: the varied experiment design; `BLIND_FORMS`: the effects' form set).
+//! -- SEED INDEX [COUNT]` (`BLIND_DESIGN=varied`: the varied experiment design; `BLIND_FORMS`: the effects' form set;
+//! `BLIND_RODS=families`: the case's rod and its identified file).
 #[path = "../tests/blind/mod.rs"]
 mod blind;
 
@@ -10,9 +11,14 @@ fn main() {
     let count: usize = args.get(2).map_or(32, |s| s.parse().unwrap());
     let params = actuator_params::paper_defaults();
     let kind = maglab_plant::suite::kinds(seed, count)[index].clone();
+    // `BLIND_RODS=families`: the case on its rod, against the file identified from that rod.
+    let rod = blind::rods_from_env().then(|| blind::rod_of_case(index));
+    let nominal = rod
+        .as_ref()
+        .map_or_else(|| params.clone(), |r| blind::identified_nominal(&params, r));
     let case = maglab_plant::suite::draw_on(
         &params,
-        None,
+        rod.as_ref(),
         seed.wrapping_mul(1000).wrapping_add(index as u64),
         kind,
         blind::design_from_env(),
@@ -20,7 +26,7 @@ fn main() {
     )
     .unwrap();
     println!("{}", case.describe());
-    let o = blind::run_case(&params, &params, case);
+    let o = blind::run_case(&params, &nominal, case);
     let d = &o.diagnosis;
     println!(
         "named {:?} correct {} ({:.1} s)\n{}",
