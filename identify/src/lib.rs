@@ -35,6 +35,7 @@
 
 pub mod cells;
 pub mod columns;
+pub mod coverage;
 pub mod design;
 pub mod drift;
 pub mod dynamics;

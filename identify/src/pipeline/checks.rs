@@ -3,7 +3,9 @@
 
 use super::dynamic::fit_constants;
 use super::passes::constants_of;
+use crate::coverage;
 use crate::dynamics::DynamicFit;
+use crate::experiments::DynamicExperiment;
 use crate::masses::MassIdentification;
 use crate::quality::{self, DynamicResidual};
 use actuator_params::ActuatorParams;
@@ -27,6 +29,33 @@ fn dynamic_residuals(fit: &DynamicFit) -> Vec<DynamicResidual> {
         .collect()
 }
 
+/// Per dynamic experiment (file name), the refined fit's NRMSE over its window with the noise
+/// taken out: `√max(0, rms² − σ²) / range`, σ the fit's white-noise estimate. A small loop's
+/// range is small, so its plain NRMSE carries the noise at full weight.
+fn systematic_nrmse(fit: &DynamicFit) -> Vec<(String, f64)> {
+    let noise_m = fit
+        .refined
+        .as_ref()
+        .and_then(|r| r.details.get("noise_m"))
+        .and_then(serde_json::Value::as_f64)
+        .unwrap_or(0.0);
+    fit.experiments
+        .iter()
+        .filter_map(|e| {
+            let nrmse = e.nrmse_refined?;
+            let y = &e.measured_m;
+            let (lo, hi) = e
+                .window
+                .clone()
+                .fold((f64::MAX, f64::MIN), |(a, b), k| (a.min(y[k]), b.max(y[k])));
+            let range_m = (hi - lo).max(1e-300);
+            let rms_m = nrmse * range_m;
+            let systematic = (rms_m * rms_m - noise_m * noise_m).max(0.0).sqrt() / range_m;
+            Some((file_name(Path::new(&e.file)), systematic))
+        })
+        .collect()
+}
+
 /// Every warning for the identification `masses` (with `dynamic`, its dynamic fit) of the
 /// quasi-static records `quasi_static`, from `base`:
 /// * the model's residuals on the records and the sines, and the sum of the masses
@@ -34,12 +63,15 @@ fn dynamic_residuals(fit: &DynamicFit) -> Vec<DynamicResidual> {
 /// * a constant the fit left at an end of its search: it has absorbed something, or the base
 ///   file is far off ([`quality::search_bound_warnings`]);
 /// * a quasi-static record whose returns to the same extreme read differently: time (or
-///   friction) rather than the shape of the loop ([`crate::drift::drift_warning`]).
+///   friction) rather than the shape of the loop ([`crate::drift::drift_warning`]);
+/// * dynamic records (`dynamic_records`) whose loops no quasi-static record reverses at
+///   ([`crate::coverage`]).
 pub fn warnings(
     masses: &MassIdentification,
     dynamic: Option<&DynamicFit>,
     base: &ActuatorParams,
     quasi_static: &Dataset,
+    dynamic_records: &[DynamicExperiment],
 ) -> Vec<String> {
     let residuals: Vec<DynamicResidual> = dynamic.map(dynamic_residuals).unwrap_or_default();
     let fitted_up_to_hz = dynamic
@@ -70,16 +102,44 @@ pub fn warnings(
         ));
     }
     for m in &quasi_static.measurements {
-        let name = m.path.file_name().map_or_else(
-            || m.path.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        );
         warnings.extend(crate::drift::drift_warning(
-            &name,
+            &file_name(&m.path),
             &m.t_s,
             &m.current_a,
             &m.displacement_m,
         ));
     }
+    let quasi_static_currents: Vec<&[f64]> = quasi_static
+        .measurements
+        .iter()
+        .map(|m| m.current_a.as_slice())
+        .collect();
+    let dynamic_currents: Vec<(String, f64, &[f64])> = dynamic_records
+        .iter()
+        .map(|d| {
+            (
+                file_name(&d.measurement.path),
+                d.frequency_hz,
+                d.measurement.current_a.as_slice(),
+            )
+        })
+        .collect();
+    let uncovered = coverage::uncovered_loops(&quasi_static_currents, &dynamic_currents);
+    let systematic = dynamic.map(systematic_nrmse).unwrap_or_default();
+    let nrmse_of = |file: &str| systematic.iter().find(|(f, _)| f == file).map(|(_, e)| *e);
+    warnings.extend(coverage::coverage_warning(
+        &uncovered,
+        nrmse_of,
+        quality::QUASI_STATIC_NRMSE_LIMIT,
+        dynamic_records.len(),
+    ));
     warnings
+}
+
+/// The file name of `path` (the whole path when it has none).
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
 }

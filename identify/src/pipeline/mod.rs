@@ -243,7 +243,13 @@ pub fn identify(
             .details
             .insert(reversible::PROVENANCE_KEY.into(), choice.provenance());
     }
-    let warnings = checks::warnings(&masses, dynamic.as_ref(), base.params, &quasi_static);
+    let warnings = checks::warnings(
+        &masses,
+        dynamic.as_ref(),
+        base.params,
+        &quasi_static,
+        &split.dynamic,
+    );
     if !warnings.is_empty() {
         params.provenance.details.insert(
             actuator_params::Provenance::WARNINGS.into(),
