@@ -11,6 +11,7 @@ use crate::quality::{self, DynamicResidual};
 use actuator_params::ActuatorParams;
 use maglab_dataset::data::Dataset;
 use maglab_model::candidates::IDENTIFICATION_RANGE;
+use maglab_model::residual::systematic;
 use std::path::Path;
 
 /// The final fit's residual per dynamic experiment, as the checks read it.
@@ -19,9 +20,7 @@ fn dynamic_residuals(fit: &DynamicFit) -> Vec<DynamicResidual> {
         .iter()
         .filter_map(|e| {
             e.nrmse_refined.map(|nrmse| DynamicResidual {
-                file: Path::new(&e.file)
-                    .file_name()
-                    .map_or_else(|| e.file.clone(), |n| n.to_string_lossy().into_owned()),
+                file: file_name(Path::new(&e.file)),
                 frequency_hz: e.frequency_hz,
                 nrmse,
             })
@@ -49,9 +48,8 @@ fn systematic_nrmse(fit: &DynamicFit) -> Vec<(String, f64)> {
                 .clone()
                 .fold((f64::MAX, f64::MIN), |(a, b), k| (a.min(y[k]), b.max(y[k])));
             let range_m = (hi - lo).max(1e-300);
-            let rms_m = nrmse * range_m;
-            let systematic = (rms_m * rms_m - noise_m * noise_m).max(0.0).sqrt() / range_m;
-            Some((file_name(Path::new(&e.file)), systematic))
+            let systematic_m = systematic(nrmse * range_m, noise_m);
+            Some((file_name(Path::new(&e.file)), systematic_m / range_m))
         })
         .collect()
 }
