@@ -8,6 +8,7 @@
 //! * [`start`]: how an experiment starts ([`StartState`]), [`current`]: what the recorded current
 //!   does between samples ([`CurrentBetweenSamples`]);
 //! * [`excitation`]: the quasi-static reversal sweep (FORC) that identifies the Preisach masses;
+//!   [`records`]: the sine and soak records the diagnosis advises;
 //! * [`error`]: the error of all of them, naming file, line, column or field.
 //!
 //! Writers (`maglab rig`, the bench plant, `cargo xtask hil` and `record`) and readers
@@ -20,6 +21,7 @@ pub mod data;
 pub mod dataset_info;
 pub mod error;
 pub mod excitation;
+pub mod records;
 pub mod start;
 
 pub use current::CurrentBetweenSamples;

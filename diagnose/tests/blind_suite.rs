@@ -73,6 +73,22 @@ fn blind_suite_names_the_right_effect() {
             );
         }
     }
+    // Every miss's report names a recording that would separate its candidates.
+    let advice = blind::advice_on_misses(&outcomes);
+    let _ = writeln!(
+        std::io::stderr(),
+        "advice on the {} misses: {} without a recording; {} of {} library misses advise on \
+         every true effect",
+        advice.misses,
+        advice.without_advice.len(),
+        advice.truth_among_candidates,
+        advice.library_misses
+    );
+    assert!(
+        advice.without_advice.is_empty(),
+        "misses whose report names no recording to separate the candidates: cases {:?}",
+        advice.without_advice
+    );
     let correct = outcomes.iter().filter(|o| o.correct).count();
     let min_percent: usize = std::env::var("BLIND_MIN_PERCENT").map_or(85, |s| {
         s.parse().expect("BLIND_MIN_PERCENT: a whole percentage")

@@ -96,6 +96,20 @@ pub fn run(args: &Args) -> Result<()> {
     for w in &d.parameter_file_warnings {
         println!("WARNING (from the parameter file's identification): {w}");
     }
+    for a in &d.advice {
+        println!(
+            "to separate {} from {}, record {}{}: {}",
+            a.candidates[0],
+            a.candidates[1],
+            a.what,
+            if a.in_dataset {
+                " (more of it: the dataset has such records)"
+            } else {
+                ""
+            },
+            a.how
+        );
+    }
     println!("estimated (nuisances, not effects):");
     for e in &d.nuisance.estimated {
         println!("  {e}");
@@ -158,11 +172,39 @@ fn um(v: f64) -> String {
 fn report(run: &DiagnosisRun, args: &Args, plots: &[&str]) -> String {
     let mut s = String::new();
     verdict_section(&mut s, run, args);
+    advice_section(&mut s, &run.diagnosis);
     estimated_section(&mut s, &run.diagnosis);
     where_section(&mut s, &run.diagnosis);
     candidates_section(&mut s, &run.diagnosis);
     plots_section(&mut s, plots);
     s
+}
+
+/// The report's section: what to record next to separate the verdict from the candidates
+/// beside it (`maglab_diagnose::diagnosis::advice`).
+fn advice_section(s: &mut String, d: &maglab_diagnose::diagnosis::Diagnosis) {
+    if d.advice.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "## What to record next
+"
+    );
+    for a in &d.advice {
+        let held = if a.in_dataset {
+            " This dataset already has such records: longer or repeated ones lower the noise on \
+             the difference."
+        } else {
+            ""
+        };
+        let _ = writeln!(
+            s,
+            "- **{}** against **{}**: {}. Why: {}.{held}\n  `{}`",
+            a.candidates[0], a.candidates[1], a.what, a.why, a.how
+        );
+    }
+    let _ = writeln!(s);
 }
 
 /// The report's section: the verdict, why, and the parameter file's warnings.

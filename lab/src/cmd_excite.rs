@@ -1,11 +1,16 @@
-//! `maglab excite`: writes the quasi-static identification current (first-order reversal curves
-//! with a reversal on every grid line, `maglab_identify::excite`), checks on the design matrix
-//! that it reaches every cell, and optionally adds the displacement the static model (6) of the
-//! parameter file predicts (a dry-run dataset for `maglab identify`, labelled as such).
+//! `maglab excite`: writes the current to apply for a recording.
+//!
+//! * `--design forc` (default): the quasi-static identification current (first-order reversal
+//!   curves with a reversal on every grid line, `maglab_dataset::excitation`), checked on the
+//!   design matrix to reach every cell, optionally with the displacement the static model (6) of
+//!   the parameter file predicts (a dry-run dataset for `maglab identify`, labelled as such);
+//! * `--design sines` / `soak`: the records `maglab diagnose` advises when it cannot separate
+//!   candidates (`maglab_dataset::records`), one file per record in the output folder.
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
 use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
+use maglab_dataset::records::{check_sine, sine_file_name, sine_record, soak_record, Sine};
 use maglab_dataset::StartState;
 use maglab_identify::design::{Design, Experiment, Grid};
 use maglab_identify::magnetization::StaticModel;
@@ -15,10 +20,33 @@ use std::path::PathBuf;
 /// Arguments of `maglab excite`.
 #[derive(Debug, Parser)]
 pub struct Args {
-    /// Output CSV: `t_s,current_a` (the current to apply), or the full measurement format
-    /// `t_s,current_a,displacement_m` with --predict-displacement.
+    /// forc: output CSV `t_s,current_a` (the current to apply), or the full measurement format
+    /// `t_s,current_a,displacement_m` with --predict-displacement. sines, soak: output folder,
+    /// one `t_s,current_a` file per record.
     #[arg(short, long)]
     output: PathBuf,
+    /// What to write: forc (the reversal sweep for the masses), sines (one record per
+    /// frequency, amplitude and bias), soak (a sine, a hold at --soak-current-a, the same sine).
+    #[arg(long, default_value = "forc")]
+    design: String,
+    /// sines, soak: frequencies, Hz (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    freq_hz: Vec<f64>,
+    /// sines, soak: amplitudes (half the peak-to-peak), A (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    amplitude_a: Vec<f64>,
+    /// sines, soak: bias currents, A (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    bias_a: Vec<f64>,
+    /// sines, soak: duration of each sine, s (whole periods, rounded up).
+    #[arg(long, default_value_t = 1.0)]
+    duration_s: f64,
+    /// soak: the current held between the two sines, A.
+    #[arg(long)]
+    soak_current_a: Option<f64>,
+    /// soak: how long it is held, s.
+    #[arg(long, default_value_t = 120.0)]
+    soak_s: f64,
     /// Parameter file giving the grid range and c0. Default: the built-in paper defaults.
     #[arg(long)]
     params: Option<PathBuf>,
@@ -26,9 +54,9 @@ pub struct Args {
     /// the eddy-current corner and the resonance so that the static model (6) holds.
     #[arg(long, default_value_t = 1.0)]
     rate_hz: f64,
-    /// Sampling rate of the file, Hz.
-    #[arg(long, default_value_t = 1000.0)]
-    sample_rate_hz: f64,
+    /// Sampling rate of the file, Hz [default: 1000 for forc, 10000 for sines and soak].
+    #[arg(long)]
+    sample_rate_hz: Option<f64>,
     /// Overshoot beyond the grid at both ends, fraction of the range (1 % keeps the default
     /// parameters' current inside control.current_limit_a).
     #[arg(long, default_value_t = 0.01)]
@@ -51,12 +79,99 @@ pub fn run(args: &Args) -> Result<()> {
             "built-in paper defaults".to_string(),
         ),
     };
+    match args.design.as_str() {
+        "forc" => forc(args, &params, &origin),
+        "sines" | "soak" => records(args, &params),
+        other => bail!("--design `{other}`: expected forc, sines or soak"),
+    }
+}
+
+/// The settings of every sine record `--freq-hz × --amplitude-a × --bias-a`, checked.
+fn sines(args: &Args, params: &actuator_params::ActuatorParams) -> Result<Vec<Sine>> {
+    for (name, list) in [
+        ("--freq-hz", &args.freq_hz),
+        ("--amplitude-a", &args.amplitude_a),
+        ("--bias-a", &args.bias_a),
+    ] {
+        if list.is_empty() {
+            bail!("--design {} needs {name}", args.design);
+        }
+    }
+    let rate = args.sample_rate_hz.unwrap_or(10_000.0);
+    let mut out = Vec::new();
+    for &bias_a in &args.bias_a {
+        for &amplitude_a in &args.amplitude_a {
+            for &frequency_hz in &args.freq_hz {
+                let sine = Sine {
+                    frequency_hz,
+                    amplitude_a,
+                    bias_a,
+                    duration_s: args.duration_s,
+                };
+                check_sine(&sine, rate, params.control.current_limit_a).map_err(|e| anyhow!(e))?;
+                out.push(sine);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// `--design sines` / `soak`: one file per record in the output folder.
+fn records(args: &Args, params: &actuator_params::ActuatorParams) -> Result<()> {
+    if args.predict_displacement {
+        bail!("--predict-displacement is for --design forc only");
+    }
+    let rate = args.sample_rate_hz.unwrap_or(10_000.0);
+    let sines = sines(args, params)?;
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("cannot create {}", args.output.display()))?;
+    let limit = params.control.current_limit_a;
+    for (k, sine) in sines.iter().enumerate() {
+        let (record, name) = if args.design == "soak" {
+            let Some(soak_a) = args.soak_current_a else {
+                bail!("--design soak needs --soak-current-a");
+            };
+            let record =
+                soak_record(sine, soak_a, args.soak_s, rate, limit).map_err(|e| anyhow!(e))?;
+            let name = sine_file_name(k, sine).replace("_sine_", "_soak_");
+            (record, name)
+        } else {
+            (sine_record(sine, rate), sine_file_name(k, sine))
+        };
+        let path = args.output.join(&name);
+        write_current(&path, &record.t_s, &record.current_a)?;
+        println!(
+            "wrote {} ({} samples at {rate} Hz, {:.2} s)",
+            path.display(),
+            record.t_s.len(),
+            record.t_s.len() as f64 / rate
+        );
+    }
+    println!(
+        "each record switches the current on at t = 0: record it from a demagnetized rod (or say \
+         its start in dataset.json) and add the measured files to the dataset's folder"
+    );
+    Ok(())
+}
+
+/// Writes `t_s,current_a`.
+fn write_current(path: &std::path::Path, t_s: &[f64], current_a: &[f64]) -> Result<()> {
+    let mut text = String::from("t_s,current_a\n");
+    for (t, i) in t_s.iter().zip(current_a) {
+        text.push_str(&format!("{t:e},{i:e}\n"));
+    }
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// `--design forc`.
+fn forc(args: &Args, params: &actuator_params::ActuatorParams, origin: &str) -> Result<()> {
+    let sample_rate_hz = args.sample_rate_hz.unwrap_or(1000.0);
     let options = ExciteOptions {
         h_min_a_per_m: params.preisach.h_min_a_per_m,
         h_max_a_per_m: params.preisach.h_max_a_per_m,
         coil_factor_per_m: params.actuator.coil_factor_per_m,
         sweep_rate_hz: args.rate_hz,
-        sample_rate_hz: args.sample_rate_hz,
+        sample_rate_hz,
         overdrive: args.overdrive,
     };
     let excitation = forc_excitation(&options).map_err(|e| anyhow!(e))?;
@@ -94,7 +209,7 @@ pub fn run(args: &Args) -> Result<()> {
         "{} first-order reversal curves, {} samples at {} Hz ({:.2} s), current [{i_min:.4}, {i_max:.4}] A",
         excitation.reversals,
         excitation.t_s.len(),
-        args.sample_rate_hz,
+        sample_rate_hz,
         excitation.t_s.last().copied().unwrap_or(0.0)
     );
     println!(
@@ -143,12 +258,7 @@ pub fn run(args: &Args) -> Result<()> {
             args.output.display()
         );
     } else {
-        let mut text = String::from("t_s,current_a\n");
-        for (t, i) in excitation.t_s.iter().zip(&excitation.current_a) {
-            text.push_str(&format!("{t:e},{i:e}\n"));
-        }
-        std::fs::write(&args.output, text)
-            .with_context(|| format!("cannot write {}", args.output.display()))?;
+        write_current(&args.output, &excitation.t_s, &excitation.current_a)?;
         println!(
             "wrote {} (start from any state: the first sample saturates the memory negatively; \
              identify the recorded file with --initial negative-saturation --branch monotone)",

@@ -13,7 +13,8 @@
 //! `IDENTIFIED_DIR` keeps the outputs. `IDENTIFIED_SEED` (default 1) and `IDENTIFIED_CASES` (the
 //! first N cases, 32 the whole suite, a list such as `3,11,14`, or `noise`: the suite's noise-only
 //! cases) choose the run; without `IDENTIFIED_CASES`, four cases of the seed chosen for what they
-//! exercise. It asserts ≥ 90 % correct. For the noise-only cases it also prints the identified
+//! exercise. It asserts that every miss's report names a recording that would separate its
+//! candidates (`advice`, printed beside each miss), then ≥ 90 % correct. For the noise-only cases it also prints the identified
 //! R_eddy, ξ, f0 against the plant's and how many have all three within 3 % (not asserted).
 //! `IDENTIFIED_DESIGN=varied` records the sines in a design drawn per case (frequencies,
 //! amplitudes, bias, rate, duration: `maglab_plant::suite::Design`).
@@ -54,6 +55,8 @@ struct Outcome {
     identified: String,
     /// R_eddy, ξ, f0 as identified.
     constants: [f64; 3],
+    /// The report's advice (`diagnosis.json` `advice`): `recording (candidate vs candidate)`.
+    advice: Vec<String>,
     seconds: f64,
 }
 
@@ -144,12 +147,27 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
         )
         .collect();
     named.sort();
+    let advice = d["advice"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .map(|a| {
+            let c = |k: usize| a["candidates"][k].as_str().unwrap_or("?").to_string();
+            format!(
+                "{} ({} vs {})",
+                a["recording"].as_str().unwrap_or("?"),
+                c(0),
+                c(1)
+            )
+        })
+        .collect();
     Outcome {
         label: case.describe(),
         expected: case.kind.expected().iter().map(|s| s.to_string()).collect(),
         named,
         identified: identified_text,
         constants,
+        advice,
         seconds: started.elapsed().as_secs_f64(),
     }
 }
@@ -199,7 +217,7 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
                 let i = indices[n];
                 let o = run_case(seed, i, kinds[i].clone(), &root_path);
                 println!(
-                    "{} {:2} {} -> {} (identified {}; {:.0} s)",
+                    "{} {:2} {} -> {} (identified {}; {:.0} s){}",
                     if o.named == o.expected {
                         "ok  "
                     } else {
@@ -209,7 +227,12 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
                     o.label,
                     o.named.join("+"),
                     o.identified,
-                    o.seconds
+                    o.seconds,
+                    if o.named == o.expected {
+                        String::new()
+                    } else {
+                        format!("; advice: {}", o.advice.join(", "))
+                    }
                 );
                 outcomes.lock().expect("no panic").push(o);
             });
@@ -245,6 +268,16 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
     println!(
         "identify -> diagnose, seed {seed}: {correct}/{} correct",
         outcomes.len()
+    );
+    // Every miss's report names a recording that would separate its candidates.
+    let unadvised: Vec<&str> = outcomes
+        .iter()
+        .filter(|o| o.named != o.expected && o.advice.is_empty())
+        .map(|o| o.label.as_str())
+        .collect();
+    assert!(
+        unadvised.is_empty(),
+        "misses whose report names no recording: {unadvised:?}"
     );
     assert!(10 * correct >= 9 * outcomes.len());
 }

@@ -127,6 +127,7 @@
 //! parameter may be pinned at a physical limit of its range ([`maglab_model::candidates::Edge`]): an
 //! explanation that needs an implausible effect is none.
 
+pub mod advice;
 pub mod grade;
 mod pairs;
 mod recording;
@@ -453,6 +454,39 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
             graded.either_reason
         );
     }
+    let advice = {
+        let named: Vec<String> = std::iter::once(name.clone())
+            .chain(additional_effects.iter().cloned())
+            .chain(graded.partly.iter().map(|p| p.effect.clone()))
+            .collect();
+        let runners_up: Vec<&str> = ranked
+            .iter()
+            .map(|r| r.0.effect.as_str())
+            .filter(|e| !named.iter().any(|n| n == e) && *e != "nominal")
+            .take(2)
+            .collect();
+        let also_listed: Vec<String> = ambiguous_with
+            .iter()
+            .chain(&equal_on_training)
+            .cloned()
+            .chain(also_significant.iter().map(|a| a.effect.clone()))
+            .collect();
+        advice::advise(
+            &advice::candidate_pairs(
+                &named,
+                &graded.either,
+                &runners_up,
+                &also_listed,
+                graded.grade,
+            ),
+            &rec.infos,
+            advice::Rig {
+                resonance_hz: params.actuator.resonance_hz,
+                current_limit_a: params.control.current_limit_a,
+                sample_rate_hz: rec.rate_hz,
+            },
+        )
+    };
     // (A `none` the parameter file's own effects replaced above is not `none`.)
     let none_by_model_error = verdict.none_by_model_error && name == "none";
     DiagnosisRun {
@@ -462,6 +496,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
             grade: graded.grade,
             partly_explained: graded.partly,
             either: graded.either,
+            advice,
             ambiguous_with,
             equal_on_training,
             held_out_tie,

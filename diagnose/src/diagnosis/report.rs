@@ -118,6 +118,9 @@ pub struct Diagnosis {
     /// For the grade `either`: the verdict's effect and the one the experiments cannot separate
     /// from it.
     pub either: Vec<String>,
+    /// What to record next to separate the verdict from the candidates beside it
+    /// ([`super::advice`]): the recording, why it separates them, the command that writes it.
+    pub advice: Vec<super::advice::Advice>,
     /// Candidates whose held-out error is within 10 % of the winner's.
     pub ambiguous_with: Vec<String>,
     /// Significant single candidates whose training RMS is within [`super::rules::EQUAL_ON_TRAINING`] of a

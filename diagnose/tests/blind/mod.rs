@@ -160,6 +160,44 @@ pub fn summary(outcomes: &[Outcome]) -> String {
     s
 }
 
+/// What the misses' reports advise recording (`Diagnosis::advice`): the misses (graded scoring),
+/// those whose report names no recording, and, of the misses with library effects, those whose
+/// advice has every true effect among its candidates.
+pub struct AdviceOnMisses {
+    pub misses: usize,
+    pub without_advice: Vec<u64>,
+    pub library_misses: usize,
+    pub truth_among_candidates: usize,
+}
+
+/// Tabulates [`AdviceOnMisses`].
+pub fn advice_on_misses(outcomes: &[Outcome]) -> AdviceOnMisses {
+    let mut a = AdviceOnMisses {
+        misses: 0,
+        without_advice: Vec::new(),
+        library_misses: 0,
+        truth_among_candidates: 0,
+    };
+    for o in outcomes.iter().filter(|o| !o.graded_correct) {
+        a.misses += 1;
+        let advice = &o.diagnosis.advice;
+        if advice.is_empty() {
+            a.without_advice.push(o.case.seed);
+        }
+        let truth: Vec<&str> = match o.case.kind {
+            Kind::Single(e) => vec![e],
+            Kind::Pair(x, y) => vec![x, y],
+            _ => continue,
+        };
+        a.library_misses += 1;
+        let advised = |e: &str| advice.iter().any(|x| x.candidates.iter().any(|c| c == e));
+        if truth.iter().all(|e| advised(e)) {
+            a.truth_among_candidates += 1;
+        }
+    }
+    a
+}
+
 /// The experiment design from `BLIND_DESIGN` (`standard`, the default, or `varied`:
 /// `maglab_plant::suite::Design`).
 pub fn design_from_env() -> suite::Design {

@@ -1,0 +1,634 @@
+//! What to record next: for the candidates a diagnosis leaves side by side, the recording whose
+//! physics separates them, and the `maglab excite` command that writes its current.
+//!
+//! A displacement record constrains an effect only where the effect is large against the others.
+//! Each library effect acts at one place of the chain `command → amplifier → coil current → H, M
+//! (eq. 4) → strain (eq. 5) → rod and load → sensor`, and each has a regime in which it is the
+//! only one left:
+//!
+//! | recording | what it isolates, and why |
+//! |---|---|
+//! | the coil current (the amplifier's current monitor) | the amplifier's lag is the only candidate that changes the current itself; every other acts after it, so a measured current equal to the command rules it out, and one that is not measures it (a current loop yielding to the back-EMF included: [`super::grade`]) |
+//! | a thermal soak (a sine, a hold at high current, the same sine again) | the thermal drift is the only candidate with a memory of the dissipated `I²` over seconds: the two sines differ by it alone |
+//! | quasi-static loops at the dynamic records' amplitudes | eddy currents (4), the rod's, the load's and the sensor's dynamics vanish at 1 Hz; a reversible part does not (it is a static term of `M`) |
+//! | the same sines at a second bias | the eddy lag goes with `1 + dM/dH` along the loop (4) and the ΔE effect with `M`: both change with the bias; a sensor's lag, a load's mode and the library's amplifier do not |
+//! | sines through and above the resonance (0.5 to 2.5 f0, as far as the sampling resolves), at two biases | a load adds a mode of its own (a second peak or anti-resonance), the ΔE effect moves the one resonance with the bias, a sensor adds phase without a peak, distributed eddy paths bend the response smoothly above their corners |
+//!
+//! For a pair `(X, Y)` the first rule that applies gives the recording: the amplifier in it → the
+//! coil current; thermal drift → the soak; a reversible part against eddy currents, the sensor or
+//! a load → quasi-static loops; eddy currents or the ΔE effect against the sensor → a second bias;
+//! the rest (eddy currents, the sensor, a load, the ΔE effect among themselves, and the ΔE effect
+//! against a reversible part) → sines through the resonance at two biases. A single candidate (the
+//! best of a `none`, the part of a `partly explained`) gets the recording in which it is largest:
+//! its row above, eddy currents and the sensor and a load the sines through the resonance.
+//!
+//! Which candidates: the `either` pair; a named effect against the one that enters the same
+//! term of the model ([`super::grade::SAME_TERM`]: only the coil current separates them, whatever
+//! the fits say); the verdict's effects against the best two other single
+//! candidates (the runners-up of the ranking, also when the verdict is clear: a confident
+//! verdict can be wrong, and the runners-up are what it was chosen over) and every other
+//! candidate the report lists as equally good (`ambiguous_with`, `also_significant`,
+//! `equal_on_training`); for `none`, each of the two best candidates against nothing; for
+//! `unexplained`, the best against the next and against nothing. When no candidate explains
+//! all of the gap (`unexplained`, `partly explained`) the coil current comes last: it splits the
+//! chain at the coil, so whatever the rest is, it says whether it arises before the coil (the
+//! amplifier) or after it (the rod, a load, the sensor). At most [`MAX_ADVICE`] recordings,
+//! distinct, in that order.
+
+use super::grade::{Grade, SAME_TERM};
+use maglab_dataset::records::MIN_SAMPLES_PER_PERIOD;
+use maglab_model::effects::EffectName;
+use maglab_model::experiments::ExperimentInfo;
+use serde::Serialize;
+
+/// Most recordings one report advises.
+pub const MAX_ADVICE: usize = 3;
+
+/// Two dynamic records count as at different biases when their mean currents differ by more
+/// than this share of the larger amplitude (a bias the loops of both do not share).
+const DISTINCT_BIAS_SHARE: f64 = 0.5;
+
+/// A recording that separates candidates (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Recording {
+    /// The measured coil current beside the displacement.
+    CoilCurrent,
+    /// A sine, a hold at high current, the same sine again.
+    ThermalSoak,
+    /// 1 Hz loops at the dynamic records' amplitudes and bias.
+    QuasiStaticLoops,
+    /// The dynamic records' sines at a second bias.
+    SecondBias,
+    /// Sines from half the resonance to three times it, at two biases.
+    ThroughResonance,
+}
+
+impl Recording {
+    /// What to record, in words.
+    pub fn description(self) -> &'static str {
+        match self {
+            Recording::CoilCurrent => {
+                "the coil current: the amplifier's current-monitor output, sampled on the \
+                 displacement's trigger"
+            }
+            Recording::ThermalSoak => {
+                "a thermal soak: a sine, a hold at high current for minutes, the same sine again"
+            }
+            Recording::QuasiStaticLoops => {
+                "quasi-static loops (1 Hz) at the amplitudes and bias of the dynamic records"
+            }
+            Recording::SecondBias => "the same sines at a second bias current",
+            Recording::ThroughResonance => {
+                "sines through and above the rod's resonance (0.5 to 2.5 f0), at two biases"
+            }
+        }
+    }
+}
+
+/// One piece of advice.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Advice {
+    /// The candidates it separates (effect names; `none` for "the effect or nothing").
+    pub candidates: Vec<String>,
+    /// The recording.
+    pub recording: Recording,
+    /// What to record, in words.
+    pub what: String,
+    /// Why it separates them (the physics, module docs).
+    pub why: String,
+    /// How to produce it: a `maglab excite` command with this dataset's numbers, or, for the
+    /// coil current, what to connect.
+    pub how: String,
+    /// This dataset already holds such records (they did not separate the candidates at this
+    /// noise: longer or repeated records lower it).
+    pub in_dataset: bool,
+}
+
+/// What the advice needs to know of the dataset and the rig.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rig {
+    /// The rod's resonance, Hz (the refitted or the parameter file's f0).
+    pub resonance_hz: f64,
+    /// The coil current limit, A.
+    pub current_limit_a: f64,
+    /// The dataset's sampling rate, Hz (the advised records' too).
+    pub sample_rate_hz: f64,
+}
+
+/// The recording that separates `a` from `b` (`None`: from nothing, i.e. makes `a` largest) and
+/// why (module docs).
+pub fn separating(a: EffectName, b: Option<EffectName>) -> (Recording, &'static str) {
+    use EffectName as E;
+    let has = |e: E| a == e || b == Some(e);
+    let other = |e: E| if a == e { b } else { Some(a) };
+    if has(E::AmplifierBandwidth) {
+        return (
+            Recording::CoilCurrent,
+            "the amplifier's lag is the only candidate that changes the coil current itself; \
+             every other acts after it, so the measured current equals the command unless the \
+             amplifier lags",
+        );
+    }
+    if has(E::ThermalDrift) {
+        return (
+            Recording::ThermalSoak,
+            "the thermal drift is the only candidate with a memory of the dissipated I² over \
+             seconds: the sine before and after the soak differs by it alone",
+        );
+    }
+    if has(E::ReversibleMagnetization) && other(E::ReversibleMagnetization) != Some(E::DeltaEEffect)
+    {
+        return (
+            Recording::QuasiStaticLoops,
+            "eddy currents (eq. 4), the rod's, the load's and the sensor's dynamics vanish at \
+             1 Hz; a reversible part of M does not",
+        );
+    }
+    let bias_dependent = |e: E| matches!(e, E::EddyFrequencyDependence | E::DeltaEEffect);
+    if let Some(b) = b {
+        if (bias_dependent(a) && b == E::SensorDynamics)
+            || (bias_dependent(b) && a == E::SensorDynamics)
+        {
+            return (
+                Recording::SecondBias,
+                "the eddy lag goes with 1 + dM/dH along the loop (eq. 4) and the ΔE effect with \
+                 M: both change with the bias, the sensor's lag does not",
+            );
+        }
+    } else if a == E::DeltaEEffect {
+        return (
+            Recording::SecondBias,
+            "the ΔE effect changes the rod's stiffness with M: the same sines at another bias \
+             change resonance and stroke by it",
+        );
+    }
+    (
+        Recording::ThroughResonance,
+        "a load adds a mode of its own, the ΔE effect moves the one resonance with the bias, a \
+         sensor adds phase without a peak, distributed eddy paths bend the response smoothly \
+         above their corners: these shapes differ most through and above the resonance",
+    )
+}
+
+/// The effect of a name (`None` for `none`, `unexplained`, `nominal` or an unknown name).
+fn effect_named(name: &str) -> Option<EffectName> {
+    EffectName::LIBRARY.into_iter().find(|e| e.name() == name)
+}
+
+/// The candidate pairs to advise on, most important first: `(named, other)` with `other`
+/// `None` for "the effect or nothing" (module docs). `named`: the verdict's effects (and the
+/// part of a `partly explained`); `runners_up`: the best single candidates the verdict does not
+/// name, best first; `grade`: the verdict's.
+pub fn candidate_pairs(
+    named: &[String],
+    either: &[String],
+    runners_up: &[&str],
+    also_listed: &[String],
+    grade: Grade,
+) -> Vec<(EffectName, Option<EffectName>)> {
+    let named: Vec<EffectName> = named.iter().filter_map(|n| effect_named(n)).collect();
+    let mut pairs = Vec::new();
+    if let [x, y] = either {
+        if let (Some(x), Some(y)) = (effect_named(x), effect_named(y)) {
+            pairs.push((x, Some(y)));
+        }
+    }
+    // A named effect whose term another enters as well: only one recording separates them.
+    for &n in &named {
+        for (a, b, _) in SAME_TERM {
+            if n.name() == a {
+                pairs.extend(effect_named(b).map(|b| (n, Some(b))));
+            }
+        }
+    }
+    let others: Vec<EffectName> = runners_up
+        .iter()
+        .copied()
+        .chain(also_listed.iter().map(String::as_str))
+        .filter_map(effect_named)
+        .filter(|e| !named.contains(e))
+        .collect();
+    match (named.first(), others.as_slice()) {
+        (Some(&first), _) => pairs.extend(others.iter().map(|&o| (first, Some(o)))),
+        // `none`: each leading candidate against nothing (what would make it visible).
+        (None, _) if grade == Grade::None => pairs.extend(others.iter().map(|&o| (o, None))),
+        // `unexplained`: the best candidate against the next, then against nothing.
+        (None, [best, next, ..]) => pairs.extend([(*best, Some(*next)), (*best, None)]),
+        (None, [best]) => pairs.push((*best, None)),
+        (None, []) => {}
+    }
+    // No candidate explains all of the gap: the coil current splits the chain at the coil and
+    // says on which side the rest arises (module docs).
+    if matches!(grade, Grade::Unexplained | Grade::PartlyExplained) {
+        let best = named.first().or(others.first()).copied();
+        match best {
+            Some(b) if b != EffectName::AmplifierBandwidth => {
+                pairs.push((b, Some(EffectName::AmplifierBandwidth)))
+            }
+            _ => {}
+        }
+    }
+    if pairs.is_empty() {
+        if let Some(&first) = named.first() {
+            pairs.push((first, None));
+        }
+    }
+    pairs
+}
+
+/// The advice for `pairs` (at most [`MAX_ADVICE`], one per recording) on a dataset whose
+/// experiments are `infos`.
+pub fn advise(
+    pairs: &[(EffectName, Option<EffectName>)],
+    infos: &[ExperimentInfo],
+    rig: Rig,
+) -> Vec<Advice> {
+    let mut out: Vec<Advice> = Vec::new();
+    for &(a, b) in pairs {
+        let (recording, mut why) = separating(a, b);
+        if let Some((_, _, reason)) = SAME_TERM
+            .iter()
+            .find(|(x, y, _)| [a.name(), b.map_or("", |b| b.name())] == [*x, *y])
+        {
+            why = reason;
+        }
+        if out.iter().any(|x| x.recording == recording) {
+            continue;
+        }
+        let mut candidates = vec![a.name().to_string()];
+        candidates.push(b.map_or("none".to_string(), |b| b.name().to_string()));
+        let design = Design::of(infos, rig);
+        out.push(Advice {
+            candidates,
+            recording,
+            what: recording.description().to_string(),
+            why: why.to_string(),
+            how: design.command(recording),
+            in_dataset: design.holds(recording),
+        });
+        if out.len() == MAX_ADVICE {
+            break;
+        }
+    }
+    out
+}
+
+/// The dataset's dynamic design, as far as the advice needs it.
+#[derive(Debug, Clone, PartialEq)]
+struct Design {
+    /// Distinct fundamentals of the dynamic records, Hz, ascending.
+    frequencies_hz: Vec<f64>,
+    /// Distinct amplitudes, A, ascending.
+    amplitudes_a: Vec<f64>,
+    /// Distinct biases, A, ascending.
+    biases_a: Vec<f64>,
+    /// Amplitudes of the quasi-static records with a loop (not the reversal sweep), A.
+    quasi_static_amplitudes_a: Vec<f64>,
+    rig: Rig,
+}
+
+/// Appends `v` unless a value within `tolerance` (relative) is already there.
+fn push_distinct(values: &mut Vec<f64>, v: f64, tolerance: f64) {
+    if !values
+        .iter()
+        .any(|&x| (x - v).abs() <= tolerance * x.abs().max(v.abs()))
+    {
+        values.push(v);
+    }
+}
+
+impl Design {
+    fn of(infos: &[ExperimentInfo], rig: Rig) -> Design {
+        let mut d = Design {
+            frequencies_hz: Vec::new(),
+            amplitudes_a: Vec::new(),
+            biases_a: Vec::new(),
+            quasi_static_amplitudes_a: Vec::new(),
+            rig,
+        };
+        for e in infos {
+            if e.quasi_static {
+                push_distinct(&mut d.quasi_static_amplitudes_a, e.amplitude_a, 0.1);
+                continue;
+            }
+            push_distinct(&mut d.frequencies_hz, e.fundamental_hz, 0.05);
+            push_distinct(&mut d.amplitudes_a, e.amplitude_a, 0.1);
+            let distinct = d.biases_a.iter().all(|&b| {
+                (b - e.bias_a).abs() > DISTINCT_BIAS_SHARE * e.amplitude_a.max(f64::MIN_POSITIVE)
+            });
+            if distinct {
+                d.biases_a.push(e.bias_a);
+            }
+        }
+        for v in [
+            &mut d.frequencies_hz,
+            &mut d.amplitudes_a,
+            &mut d.biases_a,
+            &mut d.quasi_static_amplitudes_a,
+        ] {
+            v.sort_by(f64::total_cmp);
+        }
+        d
+    }
+
+    /// The smallest dynamic amplitude (the loops most sensitive to the rod's state), A.
+    fn amplitude_a(&self) -> f64 {
+        self.amplitudes_a.first().copied().unwrap_or(0.3)
+    }
+
+    /// The dataset's (first) bias, A.
+    fn bias_a(&self) -> f64 {
+        self.biases_a.first().copied().unwrap_or(0.8)
+    }
+
+    /// A second bias: halfway between the dataset's and the highest the current limit allows
+    /// with the smallest amplitude, or below the dataset's when that leaves no room.
+    fn second_bias_a(&self) -> f64 {
+        let (a, b) = (self.amplitude_a(), self.bias_a());
+        let highest = 0.9 * self.rig.current_limit_a - a;
+        let up = 0.5 * (b + highest);
+        if up - b > DISTINCT_BIAS_SHARE * a {
+            up
+        } else {
+            (b - 2.0 * a).max(a)
+        }
+    }
+
+    fn holds(&self, recording: Recording) -> bool {
+        let two_biases = self.biases_a.len() >= 2;
+        match recording {
+            Recording::CoilCurrent | Recording::ThermalSoak => false,
+            Recording::QuasiStaticLoops => self.amplitudes_a.iter().all(|&a| {
+                self.quasi_static_amplitudes_a
+                    .iter()
+                    .any(|&q| (q - a).abs() <= 0.2 * a)
+            }),
+            Recording::SecondBias => two_biases,
+            Recording::ThroughResonance => {
+                two_biases
+                    && self
+                        .frequencies_hz
+                        .last()
+                        .is_some_and(|&f| f >= 2.0 * self.rig.resonance_hz)
+            }
+        }
+    }
+
+    fn command(&self, recording: Recording) -> String {
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{}", round3(*x)))
+                .collect::<Vec<_>>()
+                .join(",")
+        };
+        let (a, b, b2) = (self.amplitude_a(), self.bias_a(), self.second_bias_a());
+        let f0 = self.rig.resonance_hz;
+        let excite = "maglab excite --design";
+        match recording {
+            Recording::CoilCurrent => "connect the amplifier's current-monitor output to a \
+                                       second ADC channel on the displacement's trigger"
+                .to_string(),
+            Recording::ThermalSoak => format!(
+                "{excite} soak --freq-hz {} --amplitude-a {} --bias-a {} --soak-current-a {} \
+                 --soak-s 120 -o thermal_soak",
+                round3(self.frequencies_hz.first().copied().unwrap_or(100.0)),
+                round3(a),
+                round3(b),
+                round3(0.9 * self.rig.current_limit_a)
+            ),
+            Recording::QuasiStaticLoops => format!(
+                "{excite} sines --freq-hz 1 --amplitude-a {} --bias-a {} --duration-s 2 -o slow_loops",
+                list(if self.amplitudes_a.is_empty() {
+                    &[0.3]
+                } else {
+                    &self.amplitudes_a
+                }),
+                round3(b)
+            ),
+            Recording::SecondBias => format!(
+                "{excite} sines --freq-hz {} --amplitude-a {} --bias-a {} --sample-rate-hz {} \
+                 -o second_bias",
+                list(if self.frequencies_hz.is_empty() {
+                    &[100.0]
+                } else {
+                    &self.frequencies_hz
+                }),
+                round3(a),
+                round3(b2),
+                self.rig.sample_rate_hz.round()
+            ),
+            Recording::ThroughResonance => {
+                // Up to 2.5 f0, as far as the sampling resolves (maglab_dataset::records).
+                let highest = self.rig.sample_rate_hz / MIN_SAMPLES_PER_PERIOD;
+                let mut freqs: Vec<f64> = [0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5]
+                    .iter()
+                    .map(|k| round3(k * f0))
+                    .filter(|&f| f <= highest)
+                    .collect();
+                freqs.dedup();
+                format!(
+                    "{excite} sines --freq-hz {} --amplitude-a {} --bias-a {},{} \
+                     --sample-rate-hz {} -o through_resonance",
+                    list(&freqs),
+                    round3(a),
+                    round3(b),
+                    round3(b2),
+                    self.rig.sample_rate_hz.round()
+                )
+            }
+        }
+    }
+}
+
+/// `x` to three significant digits (for a command line).
+fn round3(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let scale = 10f64.powi(2 - x.abs().log10().floor() as i32);
+    (x * scale).round() / scale
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use EffectName as E;
+
+    fn info(f: f64, a: f64, b: f64) -> ExperimentInfo {
+        ExperimentInfo {
+            name: format!("sine_{f}_{a}"),
+            fundamental_hz: f,
+            amplitude_a: a,
+            bias_a: b,
+            settle_samples: 0,
+            quasi_static: f < 10.0,
+            held_out: false,
+            frequency_group: 0,
+            start_state: "switch-on-demagnetized".into(),
+            start_state_source: "estimated".into(),
+        }
+    }
+
+    const RIG: Rig = Rig {
+        resonance_hz: 392.0,
+        current_limit_a: 2.0,
+        sample_rate_hz: 10_000.0,
+    };
+
+    #[test]
+    fn every_pair_of_library_effects_and_every_single_gets_a_recording() {
+        for a in EffectName::LIBRARY {
+            for b in EffectName::LIBRARY.into_iter().map(Some).chain([None]) {
+                if Some(a) == b {
+                    continue;
+                }
+                let (r, why) = separating(a, b);
+                assert!(!why.is_empty());
+                // Symmetric in the pair.
+                if let Some(b) = b {
+                    assert_eq!(separating(b, Some(a)).0, r, "{a:?} {b:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_recording_is_where_the_physics_separates_the_pair() {
+        let r = |a, b| separating(a, b).0;
+        assert_eq!(
+            r(E::EddyFrequencyDependence, Some(E::AmplifierBandwidth)),
+            Recording::CoilCurrent
+        );
+        assert_eq!(
+            r(E::SensorDynamics, Some(E::AmplifierBandwidth)),
+            Recording::CoilCurrent
+        );
+        assert_eq!(
+            r(E::ThermalDrift, Some(E::EddyFrequencyDependence)),
+            Recording::ThermalSoak
+        );
+        assert_eq!(
+            r(E::ReversibleMagnetization, Some(E::EddyFrequencyDependence)),
+            Recording::QuasiStaticLoops
+        );
+        assert_eq!(
+            r(E::EddyFrequencyDependence, Some(E::SensorDynamics)),
+            Recording::SecondBias
+        );
+        assert_eq!(
+            r(E::MechanicalLoad, Some(E::DeltaEEffect)),
+            Recording::ThroughResonance
+        );
+        assert_eq!(r(E::DeltaEEffect, None), Recording::SecondBias);
+        assert_eq!(r(E::SensorDynamics, None), Recording::ThroughResonance);
+    }
+
+    #[test]
+    fn a_verdict_is_advised_against_its_runner_up_and_none_against_the_best_candidate() {
+        let named = vec!["eddy_frequency_dependence".to_string()];
+        let pairs = candidate_pairs(&named, &[], &["sensor_dynamics"], &[], Grade::Effect);
+        // The eddy path's same-term partner first (only the coil current separates them).
+        assert_eq!(
+            pairs,
+            vec![
+                (E::EddyFrequencyDependence, Some(E::AmplifierBandwidth)),
+                (E::EddyFrequencyDependence, Some(E::SensorDynamics))
+            ]
+        );
+        let loads = vec!["mechanical_load".to_string()];
+        let pairs = candidate_pairs(&loads, &[], &["sensor_dynamics"], &[], Grade::Effect);
+        assert_eq!(pairs, vec![(E::MechanicalLoad, Some(E::SensorDynamics))]);
+        // `none`: each leading candidate against nothing.
+        let pairs = candidate_pairs(
+            &[],
+            &[],
+            &["thermal_drift", "sensor_dynamics"],
+            &[],
+            Grade::None,
+        );
+        assert_eq!(
+            pairs,
+            vec![(E::ThermalDrift, None), (E::SensorDynamics, None)]
+        );
+        // `unexplained`: the best against the next, then against nothing.
+        let pairs = candidate_pairs(
+            &[],
+            &[],
+            &["thermal_drift", "sensor_dynamics"],
+            &[],
+            Grade::Unexplained,
+        );
+        // `unexplained`: the best against the next, against nothing, and the coil current.
+        assert_eq!(
+            pairs,
+            vec![
+                (E::ThermalDrift, Some(E::SensorDynamics)),
+                (E::ThermalDrift, None),
+                (E::ThermalDrift, Some(E::AmplifierBandwidth))
+            ]
+        );
+        let advice = advise(&pairs, &[info(100.0, 0.3, 0.8)], RIG);
+        let recordings: Vec<Recording> = advice.iter().map(|a| a.recording).collect();
+        assert_eq!(
+            recordings,
+            vec![Recording::ThermalSoak, Recording::CoilCurrent]
+        );
+        // An `either` pair comes first; the runner-up is not advised twice.
+        let either = vec![
+            "eddy_frequency_dependence".to_string(),
+            "amplifier_bandwidth".to_string(),
+        ];
+        let pairs = candidate_pairs(
+            &named,
+            &either,
+            &["amplifier_bandwidth"],
+            &[],
+            Grade::Either,
+        );
+        assert_eq!(
+            pairs[0],
+            (E::EddyFrequencyDependence, Some(E::AmplifierBandwidth))
+        );
+        let advice = advise(&pairs, &[info(100.0, 0.3, 0.8)], RIG);
+        assert_eq!(advice.len(), 1);
+        assert_eq!(advice[0].recording, Recording::CoilCurrent);
+    }
+
+    #[test]
+    fn the_command_uses_the_datasets_amplitude_bias_and_resonance() {
+        let infos = [
+            info(1.0, 0.3, 0.8),
+            info(100.0, 0.3, 0.8),
+            info(200.0, 0.6, 0.8),
+        ];
+        let pairs = [(E::MechanicalLoad, Some(E::SensorDynamics))];
+        let advice = advise(&pairs, &infos, RIG);
+        let how = &advice[0].how;
+        assert!(
+            how.contains("--freq-hz 196,294,392,490,588,784,980 "),
+            "{how}"
+        );
+        assert!(how.contains("--amplitude-a 0.3 --bias-a 0.8,1.15"), "{how}");
+        assert!(!advice[0].in_dataset);
+        // Quasi-static loops at 0.3 A but not at 0.6 A: not yet in the dataset.
+        let loops = advise(&[(E::ReversibleMagnetization, None)], &infos, RIG);
+        assert_eq!(loops[0].recording, Recording::QuasiStaticLoops);
+        assert!(!loops[0].in_dataset);
+        assert!(
+            loops[0].how.contains("--amplitude-a 0.3,0.6"),
+            "{}",
+            loops[0].how
+        );
+        let with_both = [&infos[..], &[info(1.0, 0.6, 0.8)]].concat();
+        assert!(advise(&[(E::ReversibleMagnetization, None)], &with_both, RIG)[0].in_dataset);
+    }
+
+    #[test]
+    fn a_second_bias_stays_within_the_current_limit() {
+        let d = Design::of(&[info(100.0, 0.6, 1.2)], RIG);
+        let b2 = d.second_bias_a();
+        assert!(b2 + 0.6 <= 0.9 * RIG.current_limit_a + 1e-12, "{b2}");
+        assert!((b2 - 1.2).abs() > 0.3, "{b2}");
+    }
+}
