@@ -43,7 +43,7 @@ pub struct Excitation {
     pub t_s: Vec<f64>,
     /// Currents, A.
     pub current_a: Vec<f64>,
-    /// Number of reversal curves.
+    /// Number of reversal curves (0 for the sine and soak records of [`crate::records`]).
     pub reversals: usize,
 }
 

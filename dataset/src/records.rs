@@ -9,6 +9,8 @@
 //!   [`SOAK_RAMP_S`], slow against the eddy currents and the resonance (a step would ring).
 //!   The two sines differ by what depends on the dissipated `I²` over seconds: the thermal drift.
 
+use crate::excitation::Excitation;
+
 /// Duration of each ramp of a soak record, s.
 pub const SOAK_RAMP_S: f64 = 0.05;
 
@@ -27,15 +29,6 @@ pub struct Sine {
     pub bias_a: f64,
     /// Duration, s (rounded up to whole periods).
     pub duration_s: f64,
-}
-
-/// A record's samples.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Record {
-    /// Times, s.
-    pub t_s: Vec<f64>,
-    /// Currents, A.
-    pub current_a: Vec<f64>,
 }
 
 /// Checks a sine against the sampling rate and the current limit; the error names the setting.
@@ -79,7 +72,7 @@ pub fn check_sine(sine: &Sine, sample_rate_hz: f64, current_limit_a: f64) -> Res
 }
 
 /// The samples of a sine (checked with [`check_sine`] first).
-pub fn sine_record(sine: &Sine, sample_rate_hz: f64) -> Record {
+pub fn sine_record(sine: &Sine, sample_rate_hz: f64) -> Excitation {
     let periods = (sine.duration_s * sine.frequency_hz).ceil().max(1.0);
     let n = (periods / sine.frequency_hz * sample_rate_hz).round() as usize;
     let dt = 1.0 / sample_rate_hz;
@@ -89,7 +82,11 @@ pub fn sine_record(sine: &Sine, sample_rate_hz: f64) -> Record {
         .iter()
         .map(|&t| sine.bias_a + sine.amplitude_a * (w * t).sin())
         .collect();
-    Record { t_s, current_a }
+    Excitation {
+        t_s,
+        current_a,
+        reversals: 0,
+    }
 }
 
 /// The samples of a soak record: `sine` cold, the soak at `soak_current_a` for `soak_s`, `sine`
@@ -100,7 +97,7 @@ pub fn soak_record(
     soak_s: f64,
     sample_rate_hz: f64,
     current_limit_a: f64,
-) -> Result<Record, String> {
+) -> Result<Excitation, String> {
     check_sine(sine, sample_rate_hz, current_limit_a)?;
     if !(soak_s.is_finite() && soak_s > 0.0) {
         return Err(format!(
@@ -126,9 +123,10 @@ pub fn soak_record(
     ramp(soak_current_a, sine.bias_a, &mut current_a);
     current_a.extend_from_slice(&cold.current_a);
     let dt = 1.0 / sample_rate_hz;
-    Ok(Record {
+    Ok(Excitation {
         t_s: (0..current_a.len()).map(|k| k as f64 * dt).collect(),
         current_a,
+        reversals: 0,
     })
 }
 

@@ -122,6 +122,13 @@ pub fn separating(a: EffectName, b: Option<EffectName>) -> (Recording, &'static 
     use EffectName as E;
     let has = |e: E| a == e || b == Some(e);
     let other = |e: E| if a == e { b } else { Some(a) };
+    // A pair whose effects enter the same term of the model: the grade's derivation says why.
+    let is_pair = |x: &str, y: &str| {
+        b.is_some_and(|b| [a.name(), b.name()] == [x, y] || [b.name(), a.name()] == [x, y])
+    };
+    if let Some((_, _, reason)) = SAME_TERM.iter().find(|(x, y, _)| is_pair(x, y)) {
+        return (Recording::CoilCurrent, reason);
+    }
     if has(E::AmplifierBandwidth) {
         return (
             Recording::CoilCurrent,
@@ -244,23 +251,18 @@ pub fn advise(
     infos: &[ExperimentInfo],
     rig: Rig,
 ) -> Vec<Advice> {
+    let design = Design::of(infos, rig);
     let mut out: Vec<Advice> = Vec::new();
     for &(a, b) in pairs {
-        let (recording, mut why) = separating(a, b);
-        if let Some((_, _, reason)) = SAME_TERM
-            .iter()
-            .find(|(x, y, _)| [a.name(), b.map_or("", |b| b.name())] == [*x, *y])
-        {
-            why = reason;
-        }
+        let (recording, why) = separating(a, b);
         if out.iter().any(|x| x.recording == recording) {
             continue;
         }
-        let mut candidates = vec![a.name().to_string()];
-        candidates.push(b.map_or("none".to_string(), |b| b.name().to_string()));
-        let design = Design::of(infos, rig);
         out.push(Advice {
-            candidates,
+            candidates: vec![
+                a.name().to_string(),
+                b.map_or("none".to_string(), |b| b.name().to_string()),
+            ],
             recording,
             what: recording.description().to_string(),
             why: why.to_string(),
