@@ -13,9 +13,6 @@ fn main() {
     let kind = maglab_plant::suite::kinds(seed, count)[index].clone();
     // `BLIND_RODS=families`: the case on its rod, against the file identified from that rod.
     let rod = blind::rods_from_env().then(|| blind::rod_of_case(index));
-    let nominal = rod
-        .as_ref()
-        .map_or_else(|| params.clone(), |r| blind::identified_nominal(&params, r));
     let case = maglab_plant::suite::draw_on(
         &params,
         rod.as_ref(),
@@ -25,6 +22,14 @@ fn main() {
         blind::forms_from_env(),
     )
     .unwrap();
+    let nominal = rod.as_ref().map_or_else(
+        || params.clone(),
+        |r| {
+            let loops =
+                maglab_plant::bench::operating_loops(&case.experiments, blind::LOOP_TOLERANCE_A);
+            blind::identified_nominal(&params, r, &loops)
+        },
+    );
     println!("{}", case.describe());
     let o = blind::run_case(&params, &nominal, case);
     let d = &o.diagnosis;

@@ -104,3 +104,75 @@ fn blind_suite_names_the_right_effect() {
         outcomes.len()
     );
 }
+
+/// On rods the coil cannot saturate (`BLIND_RODS=families` runs the whole suite there), the
+/// noise-only cases of seed 1 are `none` against the file identified from each rod's standard
+/// dataset with quasi-static loops on the case's own loops (`blind::identified_nominal`): the
+/// reachable plane and its offset describe the rod, no false alarm. And the file identified
+/// without those loops says so: the case's loops are reported as not measured, with the
+/// recording that measures them first in the advice (`maglab_diagnose::diagnosis::coverage`).
+#[test]
+fn on_rods_noise_only_is_none_and_loops_the_masses_lack_are_reported() {
+    use maglab_diagnose::diagnosis::advice::Recording;
+    use maglab_plant::bench::operating_loops;
+    let params = actuator_params::paper_defaults();
+    let kinds = maglab_plant::suite::kinds(1, 32);
+    let noise_only: Vec<usize> = (0..kinds.len())
+        .filter(|&i| kinds[i] == maglab_plant::suite::Kind::NoiseOnly)
+        .collect();
+    assert!(!noise_only.is_empty());
+    let draw = |i: usize| {
+        maglab_plant::suite::draw_on(
+            &params,
+            Some(&blind::rod_of_case(i)),
+            1000 + i as u64,
+            kinds[i].clone(),
+            maglab_plant::suite::Design::Standard,
+            maglab_plant::suite::Forms::Original,
+        )
+        .expect("the case is drawn")
+    };
+    for &i in &noise_only {
+        let rod = blind::rod_of_case(i);
+        let case = draw(i);
+        let loops = operating_loops(&case.experiments, blind::LOOP_TOLERANCE_A);
+        let nominal = blind::identified_nominal(&params, &rod, &loops);
+        let o = blind::run_case(&params, &nominal, case);
+        let d = &o.diagnosis;
+        let _ = writeln!(
+            std::io::stderr(),
+            "rod {}: noise only -> {} (held-out systematic gap {:.3} sigma)",
+            rod.label(),
+            o.named.join("+"),
+            d.refitted_nominal.systematic_before_m / d.noise_m
+        );
+        assert!(
+            o.graded_correct,
+            "rod {}: {}",
+            rod.label(),
+            d.verdict_reason
+        );
+        assert!(d.unmeasured_loops.is_empty(), "{:?}", d.unmeasured_loops);
+    }
+    // The first of them against the file of the standard dataset alone (its sines run at
+    // another bias): the case's loops were not measured.
+    let i = noise_only[0];
+    let rod = blind::rod_of_case(i);
+    let nominal = blind::identified_nominal(&params, &rod, &[]);
+    let o = blind::run_case(&params, &nominal, draw(i));
+    let d = &o.diagnosis;
+    let _ = writeln!(
+        std::io::stderr(),
+        "rod {}, file without the case's loops: {} -> {}; {:?}",
+        rod.label(),
+        o.named.join("+"),
+        d.advice.first().map(|a| a.purpose()).unwrap_or_default(),
+        d.unmeasured_loops_warning
+    );
+    assert!(!d.unmeasured_loops.is_empty());
+    assert!(d.unmeasured_loops_warning.is_some());
+    assert_eq!(
+        d.advice.first().map(|a| a.recording),
+        Some(Recording::MeasuredLoops)
+    );
+}

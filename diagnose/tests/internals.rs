@@ -232,3 +232,399 @@ mod diagnosis {
         assert!(also_significant(&ranking, &["none"]).is_empty());
     }
 }
+
+mod grade {
+    use maglab_diagnose::diagnosis::grade::*;
+    use maglab_diagnose::diagnosis::{BandError, CandidateResult};
+
+    fn candidate(
+        effect: &str,
+        after_m: f64,
+        bands: &[(f64, f64)],
+        significant: bool,
+    ) -> CandidateResult {
+        CandidateResult {
+            effect: effect.into(),
+            parameters: Default::default(),
+            training_rms_m: 1e-7,
+            held_out_rms_before_m: 1e-6,
+            held_out_rms_after_m: after_m,
+            held_out_reduction: 1e-6 / after_m,
+            systematic_before_m: 1e-6,
+            systematic_after_m: after_m,
+            improved_experiments: 2,
+            worse_experiments: 0,
+            held_out_experiments: 2,
+            knocked_out_rms_m: 1e-6,
+            pinned: Vec::new(),
+            constants_at_range_end: Vec::new(),
+            significant,
+            per_band: bands
+                .iter()
+                .map(|&(before_m, after_m)| BandError {
+                    frequency_hz: 100.0,
+                    before_m,
+                    after_m,
+                    held_out: true,
+                })
+                .collect(),
+            evaluations: 1,
+        }
+    }
+
+    #[test]
+    fn partly_explained_needs_more_than_half_in_every_band() {
+        // Removes 75 % of the energy overall and in both bands.
+        let c = candidate("creep", 0.5e-6, &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)], false);
+        let g = grade("unexplained", &[], std::slice::from_ref(&c), 0.0, 1e-4);
+        assert_eq!(g.grade, Grade::PartlyExplained);
+        let p = g.partly.unwrap();
+        assert!((p.share_of_gap - 0.75).abs() < 1e-12, "{p:?}");
+        // One band barely helped: unexplained.
+        let c = candidate("creep", 0.5e-6, &[(1e-6, 0.2e-6), (1e-6, 0.9e-6)], false);
+        assert_eq!(
+            grade("unexplained", &[], &[c], 0.0, 1e-4).grade,
+            Grade::Unexplained
+        );
+        // A pinned parameter is no explanation, even in part.
+        let mut c = candidate("creep", 0.5e-6, &[(1e-6, 0.5e-6)], false);
+        c.pinned.push("ratio".into());
+        assert_eq!(
+            grade("unexplained", &[], &[c], 0.0, 1e-4).grade,
+            Grade::Unexplained
+        );
+    }
+
+    #[test]
+    fn either_when_another_significant_candidate_is_as_good() {
+        let a = candidate("sensor_dynamics", 1.0e-7, &[], true);
+        let b = candidate("amplifier_bandwidth", 1.05e-7, &[], true);
+        let c = candidate("mechanical_load", 1.5e-7, &[], true);
+        let g = grade(
+            "sensor_dynamics",
+            &[],
+            &[a.clone(), b, c.clone()],
+            0.0,
+            1e-4,
+        );
+        assert_eq!(g.grade, Grade::Either);
+        assert_eq!(g.either, ["sensor_dynamics", "amplifier_bandwidth"]);
+        assert_eq!(
+            grade("sensor_dynamics", &[], &[a.clone(), c], 0.0, 1e-4).grade,
+            Grade::Effect
+        );
+        assert_eq!(
+            grade("sensor_dynamics", &["creep".into()], &[a], 0.0, 1e-4).grade,
+            Grade::Pair
+        );
+        assert_eq!(grade("none", &[], &[], 0.0, 1e-4).grade, Grade::None);
+    }
+
+    #[test]
+    fn an_eddy_path_is_either_it_or_a_current_loop_yielding_to_the_back_emf() {
+        let eddy = candidate("eddy_frequency_dependence", 1.0e-7, &[], true);
+        let amp = candidate("amplifier_bandwidth", 5.0e-7, &[], false);
+        let g = grade(
+            "eddy_frequency_dependence",
+            &[],
+            &[eddy.clone(), amp.clone()],
+            0.0,
+            1e-4,
+        );
+        assert_eq!(g.grade, Grade::Either);
+        assert_eq!(
+            g.either,
+            ["eddy_frequency_dependence", "amplifier_bandwidth"]
+        );
+        assert!(g.either_reason.contains("back-EMF"), "{}", g.either_reason);
+        // Not the converse: the library's amplifier is a lag on the command the fits separate.
+        let amp = candidate("amplifier_bandwidth", 1.0e-7, &[], true);
+        let eddy = candidate("eddy_frequency_dependence", 5.0e-7, &[], false);
+        assert_eq!(
+            grade("amplifier_bandwidth", &[], &[amp, eddy], 0.0, 1e-4).grade,
+            Grade::Effect
+        );
+    }
+}
+
+mod advice {
+    use maglab_diagnose::diagnosis::advice::*;
+    use maglab_diagnose::diagnosis::grade::Grade;
+    use maglab_model::effects::EffectName;
+    use maglab_model::experiments::ExperimentInfo;
+    use EffectName as E;
+
+    fn info(f: f64, a: f64, b: f64) -> ExperimentInfo {
+        ExperimentInfo {
+            name: format!("sine_{f}_{a}"),
+            fundamental_hz: f,
+            amplitude_a: a,
+            bias_a: b,
+            settle_samples: 0,
+            quasi_static: f < 10.0,
+            held_out: false,
+            frequency_group: 0,
+            start_state: "switch-on-demagnetized".into(),
+            start_state_source: "estimated".into(),
+        }
+    }
+
+    const RIG: Rig = Rig {
+        resonance_hz: 392.0,
+        current_limit_a: 2.0,
+        sample_rate_hz: 10_000.0,
+    };
+
+    #[test]
+    fn every_pair_of_library_effects_and_every_single_gets_a_recording() {
+        for a in EffectName::LIBRARY {
+            for b in EffectName::LIBRARY.into_iter().map(Some).chain([None]) {
+                if Some(a) == b {
+                    continue;
+                }
+                let (r, why) = separating(a, b);
+                assert!(!why.is_empty());
+                // Symmetric in the pair.
+                if let Some(b) = b {
+                    assert_eq!(separating(b, Some(a)).0, r, "{a:?} {b:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_recording_is_where_the_physics_separates_the_pair() {
+        let r = |a, b| separating(a, b).0;
+        assert_eq!(
+            r(E::EddyFrequencyDependence, Some(E::AmplifierBandwidth)),
+            Recording::CoilCurrent
+        );
+        assert_eq!(
+            r(E::SensorDynamics, Some(E::AmplifierBandwidth)),
+            Recording::CoilCurrent
+        );
+        assert_eq!(
+            r(E::ThermalDrift, Some(E::EddyFrequencyDependence)),
+            Recording::ThermalSoak
+        );
+        assert_eq!(
+            r(E::ReversibleMagnetization, Some(E::EddyFrequencyDependence)),
+            Recording::QuasiStaticLoops
+        );
+        assert_eq!(
+            r(E::EddyFrequencyDependence, Some(E::SensorDynamics)),
+            Recording::SecondBias
+        );
+        assert_eq!(
+            r(E::MechanicalLoad, Some(E::DeltaEEffect)),
+            Recording::ThroughResonance
+        );
+        assert_eq!(r(E::DeltaEEffect, None), Recording::SecondBias);
+        assert_eq!(r(E::SensorDynamics, None), Recording::ThroughResonance);
+    }
+
+    #[test]
+    fn a_verdict_is_advised_against_its_runner_up_and_none_against_the_best_candidate() {
+        let named = vec!["eddy_frequency_dependence".to_string()];
+        let pairs = candidate_pairs(&named, &[], &["sensor_dynamics"], &[], Grade::Effect);
+        // The eddy path's same-term partner first (only the coil current separates them).
+        assert_eq!(
+            pairs,
+            vec![
+                (E::EddyFrequencyDependence, Some(E::AmplifierBandwidth)),
+                (E::EddyFrequencyDependence, Some(E::SensorDynamics))
+            ]
+        );
+        let loads = vec!["mechanical_load".to_string()];
+        let pairs = candidate_pairs(&loads, &[], &["sensor_dynamics"], &[], Grade::Effect);
+        assert_eq!(pairs, vec![(E::MechanicalLoad, Some(E::SensorDynamics))]);
+        // `none`: each leading candidate against nothing.
+        let pairs = candidate_pairs(
+            &[],
+            &[],
+            &["thermal_drift", "sensor_dynamics"],
+            &[],
+            Grade::None,
+        );
+        assert_eq!(
+            pairs,
+            vec![(E::ThermalDrift, None), (E::SensorDynamics, None)]
+        );
+        // `unexplained`: the best against the next, then against nothing.
+        let pairs = candidate_pairs(
+            &[],
+            &[],
+            &["thermal_drift", "sensor_dynamics"],
+            &[],
+            Grade::Unexplained,
+        );
+        // `unexplained`: the best against the next, against nothing, and the coil current.
+        assert_eq!(
+            pairs,
+            vec![
+                (E::ThermalDrift, Some(E::SensorDynamics)),
+                (E::ThermalDrift, None),
+                (E::ThermalDrift, Some(E::AmplifierBandwidth))
+            ]
+        );
+        let advice = advise(&pairs, &[info(100.0, 0.3, 0.8)], RIG);
+        let recordings: Vec<Recording> = advice.iter().map(|a| a.recording).collect();
+        assert_eq!(
+            recordings,
+            vec![Recording::ThermalSoak, Recording::CoilCurrent]
+        );
+        // An `either` pair comes first; the runner-up is not advised twice.
+        let either = vec![
+            "eddy_frequency_dependence".to_string(),
+            "amplifier_bandwidth".to_string(),
+        ];
+        let pairs = candidate_pairs(
+            &named,
+            &either,
+            &["amplifier_bandwidth"],
+            &[],
+            Grade::Either,
+        );
+        assert_eq!(
+            pairs[0],
+            (E::EddyFrequencyDependence, Some(E::AmplifierBandwidth))
+        );
+        let advice = advise(&pairs, &[info(100.0, 0.3, 0.8)], RIG);
+        assert_eq!(advice.len(), 1);
+        assert_eq!(advice[0].recording, Recording::CoilCurrent);
+    }
+
+    #[test]
+    fn the_command_uses_the_datasets_amplitude_bias_and_resonance() {
+        let infos = [
+            info(1.0, 0.3, 0.8),
+            info(100.0, 0.3, 0.8),
+            info(200.0, 0.6, 0.8),
+        ];
+        let pairs = [(E::MechanicalLoad, Some(E::SensorDynamics))];
+        let advice = advise(&pairs, &infos, RIG);
+        let how = &advice[0].how;
+        assert!(
+            how.contains("--freq-hz 196,294,392,490,588,784,980 "),
+            "{how}"
+        );
+        assert!(how.contains("--amplitude-a 0.3 --bias-a 0.8,1.15"), "{how}");
+        assert!(!advice[0].in_dataset);
+        // Quasi-static loops at 0.3 A but not at 0.6 A: not yet in the dataset.
+        let loops = advise(&[(E::ReversibleMagnetization, None)], &infos, RIG);
+        assert_eq!(loops[0].recording, Recording::QuasiStaticLoops);
+        assert!(!loops[0].in_dataset);
+        assert!(
+            loops[0].how.contains("--amplitude-a 0.3,0.6"),
+            "{}",
+            loops[0].how
+        );
+        let with_both = [&infos[..], &[info(1.0, 0.6, 0.8)]].concat();
+        assert!(advise(&[(E::ReversibleMagnetization, None)], &with_both, RIG)[0].in_dataset);
+    }
+
+    #[test]
+    fn a_second_bias_stays_within_the_current_limit() {
+        let d = Design::of(&[info(100.0, 0.6, 1.2)], RIG);
+        let b2 = d.second_bias_a();
+        assert!(b2 + 0.6 <= 0.9 * RIG.current_limit_a + 1e-12, "{b2}");
+        assert!((b2 - 1.2).abs() > 0.3, "{b2}");
+    }
+}
+
+mod coverage {
+    use maglab_dataset::data::Measurement;
+    use maglab_diagnose::diagnosis::advice::{measure_loops, Recording, Rig};
+    use maglab_diagnose::diagnosis::coverage::{unmeasured_loops, warning};
+    use maglab_model::coverage::MeasuredLoops;
+    use maglab_model::experiments::ExperimentInfo;
+
+    fn sine(bias: f64, amp: f64, f_hz: f64, n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|k| bias + amp * (2.0 * std::f64::consts::PI * f_hz * k as f64 / 1e4).sin())
+            .collect()
+    }
+
+    fn record(name: &str, current_a: Vec<f64>, f_hz: f64) -> (Measurement, ExperimentInfo) {
+        let n = current_a.len();
+        let m = Measurement {
+            path: name.into(),
+            t_s: (0..n).map(|k| k as f64 / 1e4).collect(),
+            displacement_m: vec![0.0; n],
+            current_a,
+            step_s: 1e-4,
+        };
+        let info = ExperimentInfo {
+            name: name.into(),
+            fundamental_hz: f_hz,
+            amplitude_a: 0.0,
+            bias_a: 0.0,
+            settle_samples: 0,
+            quasi_static: f_hz < 5.0,
+            held_out: false,
+            frequency_group: 0,
+            start_state: "demagnetized".into(),
+            start_state_source: "estimated".into(),
+        };
+        (m, info)
+    }
+
+    #[test]
+    fn a_loop_the_files_masses_were_not_measured_on_is_reported_with_the_recording_that_measures_it(
+    ) {
+        // The file's masses came from slow loops on 0.8 ± 0.3 and 0.8 ± 0.6 A.
+        let mut params = actuator_params::paper_defaults();
+        let (a, b) = (sine(0.8, 0.3, 1.0, 30_000), sine(0.8, 0.6, 1.0, 30_000));
+        let measured = MeasuredLoops::of_records(&[&a, &b], 1.4 / 25.0);
+        params
+            .provenance
+            .details
+            .insert(MeasuredLoops::PROVENANCE_KEY.into(), measured.to_json());
+        let records = [
+            record("covered_20hz.csv", sine(0.8, 0.3, 20.0, 5_000), 20.0),
+            record("small_20hz.csv", sine(0.5, 0.15, 20.0, 5_000), 20.0),
+            record("small_1hz.csv", sine(0.5, 0.15, 1.0, 20_000), 1.0),
+        ];
+        let (measurements, infos): (Vec<_>, Vec<_>) = records.into_iter().unzip();
+        let loops = unmeasured_loops(&params, &measurements, &infos).unwrap();
+        // The quasi-static record of the dataset is no dynamic loop to check.
+        assert_eq!(loops.len(), 1, "{loops:?}");
+        assert_eq!(loops[0].file, "small_20hz.csv");
+        let w = warning(&loops, 2).unwrap();
+        assert!(
+            w.contains("1 of 2 dynamic records' loops (0.350-0.650 A"),
+            "{w}"
+        );
+        let rig = Rig {
+            resonance_hz: 392.0,
+            current_limit_a: 2.0,
+            sample_rate_hz: 10_000.0,
+        };
+        let advice = measure_loops(&loops, rig).unwrap();
+        assert_eq!(advice.recording, Recording::MeasuredLoops);
+        assert!(
+            advice
+                .how
+                .contains("--freq-hz 1 --amplitude-a 0.15 --bias-a 0.5"),
+            "{}",
+            advice.how
+        );
+        assert!(advice.purpose().contains("small_20hz.csv"));
+        // A file that does not say where its masses were measured: nothing to report.
+        let plain = actuator_params::paper_defaults();
+        assert!(unmeasured_loops(&plain, &measurements, &infos)
+            .unwrap()
+            .is_empty());
+        assert!(warning(&[], 2).is_none() && measure_loops(&[], rig).is_none());
+        // A broken record names its field.
+        params.provenance.details.insert(
+            MeasuredLoops::PROVENANCE_KEY.into(),
+            serde_json::json!({"minima_a": [], "maxima_a": [], "cell_a": -1.0}),
+        );
+        let e = unmeasured_loops(&params, &measurements, &infos).unwrap_err();
+        assert!(
+            e.contains("provenance.quasi_static_reversals.cell_a"),
+            "{e}"
+        );
+    }
+}

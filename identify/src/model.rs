@@ -575,7 +575,8 @@ pub fn is_closed_loop(series: &crate::columns::Series) -> bool {
 
 /// The initial memory of `series`: `periodic` for a closed loop when `closed_loops_periodic`,
 /// else `initial`.
-fn initial_of(
+#[doc(hidden)]
+pub fn initial_of(
     series: &crate::columns::Series,
     initial: StartState,
     closed_loops_periodic: bool,
@@ -584,46 +585,5 @@ fn initial_of(
         StartState::Periodic
     } else {
         initial
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::columns::Series;
-
-    fn series(label: &str, input: Vec<f64>, output: Vec<f64>, selected: Vec<bool>) -> Series {
-        Series {
-            label: label.into(),
-            lines: (1..=input.len() as u64).collect(),
-            input,
-            output,
-            selected,
-        }
-    }
-
-    #[test]
-    fn each_experiment_is_judged_on_its_own_fit_rows() {
-        let t: Vec<f64> = (0..=200).map(|k| k as f64 / 200.0).collect();
-        let cycle = |x: &f64| (2.0 * std::f64::consts::PI * x).sin();
-        let loop_in: Vec<f64> = t.iter().map(cycle).collect();
-        let loop_out: Vec<f64> = t.iter().map(|x| cycle(&(x - 0.05))).collect();
-        let all = vec![true; t.len()];
-        let closed = series("closed", loop_in.clone(), loop_out.clone(), all.clone());
-        // A first magnetization curve: from zero up, it does not return.
-        let ramp = series("ramp", t.clone(), t.iter().map(|x| x * x).collect(), all);
-        // A closed loop whose fit rows are only its first half is not one on those rows.
-        let half: Vec<bool> = (0..t.len()).map(|k| k <= 100).collect();
-        let half_selected = series("half", loop_in, loop_out, half);
-        let mut none_selected = ramp.clone();
-        none_selected.selected = vec![false; t.len()];
-        assert!(is_closed_loop(&closed));
-        assert!(!is_closed_loop(&ramp));
-        assert!(!is_closed_loop(&half_selected));
-        assert!(!is_closed_loop(&none_selected), "judged on all rows");
-        let demag = StartState::DemagnetizedAtFirstInput;
-        assert_eq!(initial_of(&closed, demag, true), StartState::Periodic);
-        assert_eq!(initial_of(&ramp, demag, true), demag);
-        assert_eq!(initial_of(&closed, demag, false), demag);
     }
 }

@@ -424,8 +424,44 @@ mod dynamics_phase_lag {
 
 mod model {
     use maglab_dataset::StartState;
+    use maglab_identify::columns::Series;
     use maglab_identify::design::Grid;
-    use maglab_identify::model::{PreisachModel, FORMAT, FORMAT_1};
+    use maglab_identify::model::{initial_of, is_closed_loop, PreisachModel, FORMAT, FORMAT_1};
+
+    fn series(label: &str, input: Vec<f64>, output: Vec<f64>, selected: Vec<bool>) -> Series {
+        Series {
+            label: label.into(),
+            lines: (1..=input.len() as u64).collect(),
+            input,
+            output,
+            selected,
+        }
+    }
+
+    #[test]
+    fn each_experiment_is_judged_on_its_own_fit_rows() {
+        let t: Vec<f64> = (0..=200).map(|k| k as f64 / 200.0).collect();
+        let cycle = |x: &f64| (2.0 * std::f64::consts::PI * x).sin();
+        let loop_in: Vec<f64> = t.iter().map(cycle).collect();
+        let loop_out: Vec<f64> = t.iter().map(|x| cycle(&(x - 0.05))).collect();
+        let all = vec![true; t.len()];
+        let closed = series("closed", loop_in.clone(), loop_out.clone(), all.clone());
+        // A first magnetization curve: from zero up, it does not return.
+        let ramp = series("ramp", t.clone(), t.iter().map(|x| x * x).collect(), all);
+        // A closed loop whose fit rows are only its first half is not one on those rows.
+        let half: Vec<bool> = (0..t.len()).map(|k| k <= 100).collect();
+        let half_selected = series("half", loop_in, loop_out, half);
+        let mut none_selected = ramp.clone();
+        none_selected.selected = vec![false; t.len()];
+        assert!(is_closed_loop(&closed));
+        assert!(!is_closed_loop(&ramp));
+        assert!(!is_closed_loop(&half_selected));
+        assert!(!is_closed_loop(&none_selected), "judged on all rows");
+        let demag = StartState::DemagnetizedAtFirstInput;
+        assert_eq!(initial_of(&closed, demag, true), StartState::Periodic);
+        assert_eq!(initial_of(&ramp, demag, true), demag);
+        assert_eq!(initial_of(&closed, demag, false), demag);
+    }
 
     /// A model file of the first format reads with its start state renamed: `demagnetized`
     /// meant around the first input there, `demagnetized-at-zero` what `demagnetized` means now.
@@ -454,5 +490,112 @@ mod model {
             assert_eq!(back.format, FORMAT);
         }
         std::fs::remove_dir_all(&dir).ok();
+    }
+}
+
+mod coverage {
+    use maglab_identify::coverage::*;
+
+    fn sine(bias: f64, amp: f64, cycles: f64, n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|k| bias + amp * (2.0 * std::f64::consts::PI * cycles * k as f64 / n as f64).sin())
+            .collect()
+    }
+
+    #[test]
+    fn an_uncovered_loop_is_warned_about_only_when_missed_at_its_slowest_frequency() {
+        // Reversal sweep: from 0 A up to the top, down to 1.4 − 0.14 k, back up, ...
+        let mut forc: Vec<f64> = (0..=140).map(|s| s as f64 * 0.01).collect();
+        for k in 1..=10 {
+            let steps = (14 * k) as usize;
+            forc.extend((1..=steps).map(|s| 1.4 - s as f64 * 0.01));
+            forc.extend((1..=steps).rev().map(|s| 1.4 - (s - 1) as f64 * 0.01));
+        }
+        let small = sine(0.55, 0.15, 20.0, 10_000);
+        let dynamic = vec![("small".to_string(), 20.0, &small[..])];
+        let u = uncovered_loops(&MeasuredLoops::of_records(&[&forc], 1.4 / 25.0), &dynamic);
+        assert_eq!(u.len(), 1, "{u:?}");
+        let w = coverage_warning(&u, |_| Some(0.07), 0.02, 2).unwrap();
+        assert!(w.contains("between 0.400 and 0.700 A at 7.0 %"), "{w}");
+        assert!(coverage_warning(&u, |_| Some(0.005), 0.02, 2).is_none());
+        // Only the slowest record of a loop counts: the same loop at 400 Hz missed by the
+        // dynamics is no sign of the masses when its 20 Hz record fits.
+        let mut both = u.clone();
+        both.push(UncoveredLoop {
+            file: "small-400".into(),
+            frequency_hz: 400.0,
+            ..u[0].clone()
+        });
+        let nrmse = |f: &str| Some(if f == "small-400" { 0.05 } else { 0.005 });
+        assert!(coverage_warning(&both, nrmse, 0.02, 3).is_none());
+    }
+}
+
+mod reach {
+    use maglab_identify::design::Grid;
+    use maglab_identify::fit::Bands;
+    use maglab_identify::reach::*;
+    use maglab_identify::LEVELS;
+
+    #[test]
+    fn a_reach_inside_the_grid_gets_a_band_on_each_side_and_the_reach_on_grid_lines() {
+        let g = identification_grid(
+            Grid::uniform(-30e3, 30e3),
+            Reach {
+                lo_a_per_m: 0.0,
+                hi_a_per_m: 21_560.0,
+            },
+        );
+        assert_eq!(
+            g.bands,
+            Bands {
+                low: true,
+                high: true
+            }
+        );
+        let lines = g.grid.lines();
+        assert!((lines[1] - 0.0).abs() < 1e-9, "{}", lines[1]);
+        assert!((lines[LEVELS - 1] - 21_560.0).abs() < 1e-6);
+        assert_eq!(g.reach.unwrap().hi_a_per_m, 21_560.0);
+    }
+
+    #[test]
+    fn a_side_the_data_reach_keeps_the_base_grid_and_both_keep_it_all() {
+        let base = Grid::uniform(-30e3, 30e3);
+        let one = identification_grid(
+            base,
+            Reach {
+                lo_a_per_m: -30.8e3,
+                hi_a_per_m: 21e3,
+            },
+        );
+        assert_eq!(
+            one.bands,
+            Bands {
+                low: false,
+                high: true
+            }
+        );
+        assert_eq!(one.grid.h_min, -30e3);
+        assert!((one.grid.lines()[LEVELS - 1] - 21e3).abs() < 1e-6);
+        let both = identification_grid(
+            base,
+            Reach {
+                lo_a_per_m: -30.8e3,
+                hi_a_per_m: 30.8e3,
+            },
+        );
+        assert_eq!(both.grid, base);
+        assert!(!both.has_bands());
+        assert_eq!(both.reach, None);
+    }
+
+    #[test]
+    fn the_reach_of_records_is_c0_times_their_current_extremes() {
+        let a = [0.2, 1.4, 0.5];
+        let b = [0.0, 0.7];
+        let r = Reach::of_currents([&a[..], &b[..]], 15_400.0).unwrap();
+        assert_eq!((r.lo_a_per_m, r.hi_a_per_m), (0.0, 1.4 * 15_400.0));
+        assert_eq!(Reach::of_currents([&[f64::NAN][..]], 1.0), None);
     }
 }

@@ -64,6 +64,17 @@ fn identify_rod(rod: Rod, seed: u64) -> Row {
         &|_, _, _| {},
     )
     .expect("identify");
+    // The file says which loops its masses were measured on: the sines' own (the 1 Hz ones
+    // reverse at their ends), not a small loop at another bias.
+    let measured =
+        maglab_model::coverage::MeasuredLoops::from_provenance(&identified.params.provenance)
+            .expect("the file records its measured loops")
+            .expect("well formed");
+    assert!(
+        measured.covers(0.5, 1.1) && measured.covers(0.2, 1.4),
+        "{measured:?}"
+    );
+    assert!(!measured.covers(0.35, 0.65), "{measured:?}");
     if std::env::var("ROD_KEEP").is_err() {
         let _ = std::fs::remove_dir_all(&dir);
     } else {

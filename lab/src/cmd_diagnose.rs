@@ -96,11 +96,13 @@ pub fn run(args: &Args) -> Result<()> {
     for w in &d.parameter_file_warnings {
         println!("WARNING (from the parameter file's identification): {w}");
     }
+    if let Some(w) = &d.unmeasured_loops_warning {
+        println!("WARNING: {w}");
+    }
     for a in &d.advice {
         println!(
-            "to separate {} from {}, record {}{}: {}",
-            a.candidates[0],
-            a.candidates[1],
+            "{}, record {}{}: {}",
+            a.purpose(),
             a.what,
             if a.in_dataset {
                 " (more of it: the dataset has such records)"
@@ -200,8 +202,11 @@ fn advice_section(s: &mut String, d: &maglab_diagnose::diagnosis::Diagnosis) {
         };
         let _ = writeln!(
             s,
-            "- **{}** against **{}**: {}. Why: {}.{held}\n  `{}`",
-            a.candidates[0], a.candidates[1], a.what, a.why, a.how
+            "- {}: {}. Why: {}.{held}\n  `{}`",
+            a.purpose(),
+            a.what,
+            a.why,
+            a.how
         );
     }
     let _ = writeln!(s);
@@ -241,6 +246,13 @@ fn verdict_section(s: &mut String, run: &DiagnosisRun, args: &Args) {
             let _ = writeln!(s, "- {w}");
         }
         let _ = writeln!(s);
+    }
+    if let Some(w) = &d.unmeasured_loops_warning {
+        let _ = writeln!(
+            s,
+            "**Loops the parameter file's masses were not measured on** (`unmeasured_loops`): \
+             {w}.\n"
+        );
     }
 }
 

@@ -9,6 +9,7 @@
 //!   ranges and starting points;
 //! * [`fit`]: Levenberg-Marquardt fits on training experiments with the electromagnetic stage
 //!   cached; [`plan_fit`]: the same with the start plan that suits each candidate;
+//! * [`coverage`]: which minor loops a file's Preisach masses were measured on;
 //! * [`experiments`]: each record's fundamental, amplitude, bias, settling; quasi-static or not;
 //! * [`nuisance`]: the recording's start states, current between samples and channel skew,
 //!   estimated with a given model; the memory a lead-in record leaves;
@@ -18,6 +19,7 @@
 //! it on the bench plant of `maglab-plant`, whose equations it does not share.
 
 pub mod candidates;
+pub mod coverage;
 pub mod effects;
 pub mod experiments;
 pub mod fit;

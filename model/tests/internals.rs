@@ -662,3 +662,98 @@ mod nuisance {
         assert!(differ > 0.01 * nominal.saturation_a_per_m, "{differ}");
     }
 }
+
+mod coverage {
+    use maglab_model::coverage::*;
+    use serde_json::json;
+
+    fn sine(bias: f64, amp: f64, cycles: f64, n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|k| bias + amp * (2.0 * std::f64::consts::PI * cycles * k as f64 / n as f64).sin())
+            .collect()
+    }
+
+    #[test]
+    fn turning_points_of_a_sine_and_a_ramp() {
+        let (mn, mx) = turning_points(&sine(0.5, 0.2, 2.0, 2000), 0.01);
+        assert_eq!((mn.len(), mx.len()), (2, 2), "{mn:?} {mx:?}");
+        assert!(mx.iter().all(|m| (m - 0.7).abs() < 1e-6));
+        assert!(mn.iter().all(|m| (m - 0.3).abs() < 1e-6), "{mn:?}");
+        // Wiggles inside the dead band are no reversal.
+        let ramp: Vec<f64> = (0..100)
+            .map(|k| k as f64 * 0.01 + 0.001 * (k % 2) as f64)
+            .collect();
+        let (mn, mx) = turning_points(&ramp, 0.01);
+        assert_eq!((mn.len(), mx.len()), (0, 0), "{mn:?} {mx:?}");
+    }
+
+    /// A FORC-like sweep: from 0 A up to 1.4 A, down to 1.4 − 0.14 k, back up, ...
+    fn forc() -> Vec<f64> {
+        let mut forc: Vec<f64> = (0..=140).map(|s| s as f64 * 0.01).collect();
+        for k in 1..=10 {
+            let steps = (14 * k) as usize;
+            forc.extend((1..=steps).map(|s| 1.4 - s as f64 * 0.01));
+            forc.extend((1..=steps).rev().map(|s| 1.4 - (s - 1) as f64 * 0.01));
+        }
+        forc
+    }
+
+    #[test]
+    fn a_forc_sweep_covers_only_loops_up_to_its_top_and_a_slow_sine_covers_its_own() {
+        let forc = forc();
+        let small = sine(0.55, 0.15, 20.0, 10_000);
+        let top = sine(1.1, 0.3, 20.0, 10_000);
+        let dynamic = vec![
+            ("small".to_string(), 20.0, &small[..]),
+            ("top".to_string(), 20.0, &top[..]),
+        ];
+        let cell = cell_of_currents([&forc[..], &small[..], &top[..]]).unwrap();
+        assert!((cell - 1.4 / GRID_LEVELS as f64).abs() < 1e-9);
+        let u = uncovered_loops(&MeasuredLoops::of_records(&[&forc], cell), &dynamic);
+        assert_eq!(u.len(), 1, "{u:?}");
+        assert_eq!(u[0].file, "small");
+        assert!((u[0].lo_a - 0.4).abs() < 1e-3 && (u[0].hi_a - 0.7).abs() < 1e-3);
+        let slow = sine(0.55, 0.15, 1.0, 10_000);
+        let both = MeasuredLoops::of_records(&[&forc, &slow], cell);
+        assert!(uncovered_loops(&both, &dynamic).is_empty());
+        // A loop within one cell needs nothing.
+        assert!(MeasuredLoops::of_records(&[], cell).covers(0.5, 0.5 + 0.9 * cell));
+    }
+
+    #[test]
+    fn the_provenance_entry_reads_back_and_a_broken_one_names_its_field() {
+        let measured = MeasuredLoops::of_records(&[&forc()], 0.056);
+        // A slow sine's periods reverse at the same currents: kept once each.
+        let slow = sine(0.55, 0.15, 5.0, 10_000);
+        let once = MeasuredLoops::of_records(&[&slow], 0.056);
+        assert_eq!(
+            (once.minima_a.len(), once.maxima_a.len()),
+            (1, 1),
+            "{once:?}"
+        );
+        let mut provenance = actuator_params::Provenance {
+            source: String::new(),
+            details: Default::default(),
+        };
+        assert!(MeasuredLoops::from_provenance(&provenance).is_none());
+        provenance
+            .details
+            .insert(MeasuredLoops::PROVENANCE_KEY.into(), measured.to_json());
+        let back = MeasuredLoops::from_provenance(&provenance)
+            .unwrap()
+            .unwrap();
+        assert_eq!(back, measured);
+        provenance.details.insert(
+            MeasuredLoops::PROVENANCE_KEY.into(),
+            json!({"minima_a": [0.1, "x"], "maxima_a": [], "cell_a": 0.05}),
+        );
+        let e = MeasuredLoops::from_provenance(&provenance)
+            .unwrap()
+            .unwrap_err();
+        assert!(
+            e.contains("provenance.quasi_static_reversals.minima_a"),
+            "{e}"
+        );
+        assert!(e.contains("\"x\""), "{e}");
+    }
+}

@@ -306,6 +306,53 @@ pub fn identification_design(rate_hz: f64) -> Vec<Experiment> {
     out
 }
 
+/// The loops `experiments` run: each one's `(bias, amplitude)` in A, the centre and half the
+/// span of its current over its second half (past the start's transient), each loop once
+/// (within `tolerance_a`), in the order first met.
+pub fn operating_loops(experiments: &[Experiment], tolerance_a: f64) -> Vec<(f64, f64)> {
+    let mut loops: Vec<(f64, f64)> = Vec::new();
+    for e in experiments {
+        let steady = &e.current_a[e.current_a.len() / 2..];
+        let (lo, hi) = steady
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &i| {
+                (a.min(i), b.max(i))
+            });
+        if hi < lo {
+            continue;
+        }
+        let found = (0.5 * (hi + lo), 0.5 * (hi - lo));
+        let seen = loops
+            .iter()
+            .any(|(b, a)| (b - found.0).abs() <= tolerance_a && (a - found.1).abs() <= tolerance_a);
+        if !seen {
+            loops.push(found);
+        }
+    }
+    loops
+}
+
+/// [`identification_design`] with a quasi-static (1 Hz, 3 s) sine on each of `loops` (`(bias,
+/// amplitude)`, A) as well: the masses are measured on the loops a later dataset runs
+/// (`maglab_identify::coverage`; docs/model.md "Not on every design"), as a bench identifies
+/// its rod on the operating range it then uses.
+pub fn identification_design_covering(rate_hz: f64, loops: &[(f64, f64)]) -> Vec<Experiment> {
+    let mut design = identification_design(rate_hz);
+    for &(bias_a, amplitude_a) in loops {
+        let index = design.len();
+        design.push(sine_experiment(
+            index,
+            StartState::SwitchOnDemagnetized,
+            bias_a,
+            amplitude_a,
+            1.0,
+            3.0,
+            rate_hz,
+        ));
+    }
+    design
+}
+
 /// Runs one experiment on `plant` (started as the experiment says).
 pub fn record(
     plant: &mut Plant,

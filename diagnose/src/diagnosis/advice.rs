@@ -35,6 +35,7 @@
 //! amplifier) or after it (the rod, a load, the sensor). At most [`MAX_ADVICE`] recordings,
 //! distinct, in that order.
 
+use super::coverage::UnmeasuredLoop;
 use super::grade::{Grade, SAME_TERM};
 use maglab_dataset::records::MIN_SAMPLES_PER_PERIOD;
 use maglab_model::effects::EffectName;
@@ -62,6 +63,9 @@ pub enum Recording {
     SecondBias,
     /// Sines from half the resonance to three times it, at two biases.
     ThroughResonance,
+    /// 1 Hz loops on the dynamic loops the parameter file's masses were not measured on, to
+    /// identify the file again ([`super::coverage`]).
+    MeasuredLoops,
 }
 
 impl Recording {
@@ -81,6 +85,11 @@ impl Recording {
             Recording::SecondBias => "the same sines at a second bias current",
             Recording::ThroughResonance => {
                 "sines through and above the rod's resonance (0.5 to 2.5 f0), at two biases"
+            }
+            Recording::MeasuredLoops => {
+                "quasi-static loops (1 Hz) between the currents of the dynamic loops the \
+                 parameter file's masses were not measured on, then `maglab identify` on the \
+                 dataset with them"
             }
         }
     }
@@ -103,6 +112,24 @@ pub struct Advice {
     /// This dataset already holds such records (they did not separate the candidates at this
     /// noise: longer or repeated records lower it).
     pub in_dataset: bool,
+}
+
+impl Advice {
+    /// What the recording is for, in words: `to separate X from Y`, or, for
+    /// [`Recording::MeasuredLoops`], to measure the file's masses where the data run.
+    pub fn purpose(&self) -> String {
+        match self.recording {
+            Recording::MeasuredLoops => format!(
+                "to measure the parameter file's masses on the loops it was not identified on \
+                 (the first: {})",
+                self.candidates[1]
+            ),
+            _ => format!(
+                "to separate {} from {}",
+                self.candidates[0], self.candidates[1]
+            ),
+        }
+    }
 }
 
 /// What the advice needs to know of the dataset and the rig.
@@ -276,9 +303,47 @@ pub fn advise(
     out
 }
 
+/// The advice for the dynamic loops the parameter file's masses were not measured on (`None`
+/// when there are none): 1 Hz sines between the same currents, to identify the file again.
+/// It comes before any about effects: an effect is judged against a model that must hold where
+/// the data run.
+pub fn measure_loops(loops: &[UnmeasuredLoop], rig: Rig) -> Option<Advice> {
+    let first = loops.first()?;
+    let (mut biases_a, mut amplitudes_a) = (Vec::new(), Vec::new());
+    for l in loops {
+        let (bias_a, amplitude_a) = l.bias_and_amplitude_a();
+        push_distinct(&mut biases_a, round3(bias_a), 0.02);
+        push_distinct(&mut amplitudes_a, round3(amplitude_a), 0.02);
+    }
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x}"))
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    Some(Advice {
+        candidates: vec!["parameter file's masses".into(), first.file.clone()],
+        recording: Recording::MeasuredLoops,
+        what: Recording::MeasuredLoops.description().to_string(),
+        why: "a minor loop's stroke is the sum of the masses of the cells it switches (eq. 2); \
+              a quasi-static loop reversing at the same currents measures that sum, which the \
+              identification's records did not"
+            .to_string(),
+        how: format!(
+            "maglab excite --design sines --freq-hz 1 --amplitude-a {} --bias-a {} \
+             --duration-s 3 --sample-rate-hz {} -o measured_loops",
+            list(&amplitudes_a),
+            list(&biases_a),
+            rig.sample_rate_hz.round()
+        ),
+        in_dataset: false,
+    })
+}
+
 /// The dataset's dynamic design, as far as the advice needs it.
+#[doc(hidden)]
 #[derive(Debug, Clone, PartialEq)]
-struct Design {
+pub struct Design {
     /// Distinct fundamentals of the dynamic records, Hz, ascending.
     frequencies_hz: Vec<f64>,
     /// Distinct amplitudes, A, ascending.
@@ -301,7 +366,8 @@ fn push_distinct(values: &mut Vec<f64>, v: f64, tolerance: f64) {
 }
 
 impl Design {
-    fn of(infos: &[ExperimentInfo], rig: Rig) -> Design {
+    /// The design of a dataset whose experiments are `infos`.
+    pub fn of(infos: &[ExperimentInfo], rig: Rig) -> Design {
         let mut d = Design {
             frequencies_hz: Vec::new(),
             amplitudes_a: Vec::new(),
@@ -346,7 +412,7 @@ impl Design {
 
     /// A second bias: halfway between the dataset's and the highest the current limit allows
     /// with the smallest amplitude, or below the dataset's when that leaves no room.
-    fn second_bias_a(&self) -> f64 {
+    pub fn second_bias_a(&self) -> f64 {
         let (a, b) = (self.amplitude_a(), self.bias_a());
         let highest = 0.9 * self.rig.current_limit_a - a;
         let up = 0.5 * (b + highest);
@@ -360,7 +426,7 @@ impl Design {
     fn holds(&self, recording: Recording) -> bool {
         let two_biases = self.biases_a.len() >= 2;
         match recording {
-            Recording::CoilCurrent | Recording::ThermalSoak => false,
+            Recording::CoilCurrent | Recording::ThermalSoak | Recording::MeasuredLoops => false,
             Recording::QuasiStaticLoops => self.amplitudes_a.iter().all(|&a| {
                 self.quasi_static_amplitudes_a
                     .iter()
@@ -399,7 +465,9 @@ impl Design {
                 round3(b),
                 round3(0.9 * self.rig.current_limit_a)
             ),
-            Recording::QuasiStaticLoops => format!(
+            // Only [`measure_loops`] advises it, with the unmeasured loops' own currents; from
+            // the design alone, its loops.
+            Recording::QuasiStaticLoops | Recording::MeasuredLoops => format!(
                 "{excite} sines --freq-hz 1 --amplitude-a {} --bias-a {} --duration-s 2 -o slow_loops",
                 list(if self.amplitudes_a.is_empty() {
                     &[0.3]
@@ -450,187 +518,4 @@ fn round3(x: f64) -> f64 {
     }
     let scale = 10f64.powi(2 - x.abs().log10().floor() as i32);
     (x * scale).round() / scale
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use EffectName as E;
-
-    fn info(f: f64, a: f64, b: f64) -> ExperimentInfo {
-        ExperimentInfo {
-            name: format!("sine_{f}_{a}"),
-            fundamental_hz: f,
-            amplitude_a: a,
-            bias_a: b,
-            settle_samples: 0,
-            quasi_static: f < 10.0,
-            held_out: false,
-            frequency_group: 0,
-            start_state: "switch-on-demagnetized".into(),
-            start_state_source: "estimated".into(),
-        }
-    }
-
-    const RIG: Rig = Rig {
-        resonance_hz: 392.0,
-        current_limit_a: 2.0,
-        sample_rate_hz: 10_000.0,
-    };
-
-    #[test]
-    fn every_pair_of_library_effects_and_every_single_gets_a_recording() {
-        for a in EffectName::LIBRARY {
-            for b in EffectName::LIBRARY.into_iter().map(Some).chain([None]) {
-                if Some(a) == b {
-                    continue;
-                }
-                let (r, why) = separating(a, b);
-                assert!(!why.is_empty());
-                // Symmetric in the pair.
-                if let Some(b) = b {
-                    assert_eq!(separating(b, Some(a)).0, r, "{a:?} {b:?}");
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn the_recording_is_where_the_physics_separates_the_pair() {
-        let r = |a, b| separating(a, b).0;
-        assert_eq!(
-            r(E::EddyFrequencyDependence, Some(E::AmplifierBandwidth)),
-            Recording::CoilCurrent
-        );
-        assert_eq!(
-            r(E::SensorDynamics, Some(E::AmplifierBandwidth)),
-            Recording::CoilCurrent
-        );
-        assert_eq!(
-            r(E::ThermalDrift, Some(E::EddyFrequencyDependence)),
-            Recording::ThermalSoak
-        );
-        assert_eq!(
-            r(E::ReversibleMagnetization, Some(E::EddyFrequencyDependence)),
-            Recording::QuasiStaticLoops
-        );
-        assert_eq!(
-            r(E::EddyFrequencyDependence, Some(E::SensorDynamics)),
-            Recording::SecondBias
-        );
-        assert_eq!(
-            r(E::MechanicalLoad, Some(E::DeltaEEffect)),
-            Recording::ThroughResonance
-        );
-        assert_eq!(r(E::DeltaEEffect, None), Recording::SecondBias);
-        assert_eq!(r(E::SensorDynamics, None), Recording::ThroughResonance);
-    }
-
-    #[test]
-    fn a_verdict_is_advised_against_its_runner_up_and_none_against_the_best_candidate() {
-        let named = vec!["eddy_frequency_dependence".to_string()];
-        let pairs = candidate_pairs(&named, &[], &["sensor_dynamics"], &[], Grade::Effect);
-        // The eddy path's same-term partner first (only the coil current separates them).
-        assert_eq!(
-            pairs,
-            vec![
-                (E::EddyFrequencyDependence, Some(E::AmplifierBandwidth)),
-                (E::EddyFrequencyDependence, Some(E::SensorDynamics))
-            ]
-        );
-        let loads = vec!["mechanical_load".to_string()];
-        let pairs = candidate_pairs(&loads, &[], &["sensor_dynamics"], &[], Grade::Effect);
-        assert_eq!(pairs, vec![(E::MechanicalLoad, Some(E::SensorDynamics))]);
-        // `none`: each leading candidate against nothing.
-        let pairs = candidate_pairs(
-            &[],
-            &[],
-            &["thermal_drift", "sensor_dynamics"],
-            &[],
-            Grade::None,
-        );
-        assert_eq!(
-            pairs,
-            vec![(E::ThermalDrift, None), (E::SensorDynamics, None)]
-        );
-        // `unexplained`: the best against the next, then against nothing.
-        let pairs = candidate_pairs(
-            &[],
-            &[],
-            &["thermal_drift", "sensor_dynamics"],
-            &[],
-            Grade::Unexplained,
-        );
-        // `unexplained`: the best against the next, against nothing, and the coil current.
-        assert_eq!(
-            pairs,
-            vec![
-                (E::ThermalDrift, Some(E::SensorDynamics)),
-                (E::ThermalDrift, None),
-                (E::ThermalDrift, Some(E::AmplifierBandwidth))
-            ]
-        );
-        let advice = advise(&pairs, &[info(100.0, 0.3, 0.8)], RIG);
-        let recordings: Vec<Recording> = advice.iter().map(|a| a.recording).collect();
-        assert_eq!(
-            recordings,
-            vec![Recording::ThermalSoak, Recording::CoilCurrent]
-        );
-        // An `either` pair comes first; the runner-up is not advised twice.
-        let either = vec![
-            "eddy_frequency_dependence".to_string(),
-            "amplifier_bandwidth".to_string(),
-        ];
-        let pairs = candidate_pairs(
-            &named,
-            &either,
-            &["amplifier_bandwidth"],
-            &[],
-            Grade::Either,
-        );
-        assert_eq!(
-            pairs[0],
-            (E::EddyFrequencyDependence, Some(E::AmplifierBandwidth))
-        );
-        let advice = advise(&pairs, &[info(100.0, 0.3, 0.8)], RIG);
-        assert_eq!(advice.len(), 1);
-        assert_eq!(advice[0].recording, Recording::CoilCurrent);
-    }
-
-    #[test]
-    fn the_command_uses_the_datasets_amplitude_bias_and_resonance() {
-        let infos = [
-            info(1.0, 0.3, 0.8),
-            info(100.0, 0.3, 0.8),
-            info(200.0, 0.6, 0.8),
-        ];
-        let pairs = [(E::MechanicalLoad, Some(E::SensorDynamics))];
-        let advice = advise(&pairs, &infos, RIG);
-        let how = &advice[0].how;
-        assert!(
-            how.contains("--freq-hz 196,294,392,490,588,784,980 "),
-            "{how}"
-        );
-        assert!(how.contains("--amplitude-a 0.3 --bias-a 0.8,1.15"), "{how}");
-        assert!(!advice[0].in_dataset);
-        // Quasi-static loops at 0.3 A but not at 0.6 A: not yet in the dataset.
-        let loops = advise(&[(E::ReversibleMagnetization, None)], &infos, RIG);
-        assert_eq!(loops[0].recording, Recording::QuasiStaticLoops);
-        assert!(!loops[0].in_dataset);
-        assert!(
-            loops[0].how.contains("--amplitude-a 0.3,0.6"),
-            "{}",
-            loops[0].how
-        );
-        let with_both = [&infos[..], &[info(1.0, 0.6, 0.8)]].concat();
-        assert!(advise(&[(E::ReversibleMagnetization, None)], &with_both, RIG)[0].in_dataset);
-    }
-
-    #[test]
-    fn a_second_bias_stays_within_the_current_limit() {
-        let d = Design::of(&[info(100.0, 0.6, 1.2)], RIG);
-        let b2 = d.second_bias_a();
-        assert!(b2 + 0.6 <= 0.9 * RIG.current_limit_a + 1e-12, "{b2}");
-        assert!((b2 - 1.2).abs() > 0.3, "{b2}");
-    }
 }

@@ -23,7 +23,10 @@
 //!    * the current between samples (held or linear: half a sample of delay apart);
 //!    * the sub-sample skew of the displacement channel against the current channel (within
 //!      ±1 sample; golden-section search);
-//!    * the sensor offset (one per dataset, least squares in closed form).
+//!    * the sensor offset (one per dataset, least squares in closed form);
+//!    * not a nuisance but beside them, [`coverage`]: the dynamic loops the parameter file's
+//!      masses were not measured on (when `maglab identify` recorded where they were),
+//!      reported beside the verdict.
 //! 3. **Noise level.** σ is the white-noise level of the residual above 0.3·f_s
 //!    ([`maglab_signal::noise::white_noise_sigma`]), median over experiments. The *systematic gap* of a
 //!    residual with RMS `e` is `g = √max(e² − σ², 0)`.
@@ -128,6 +131,7 @@
 //! explanation that needs an implausible effect is none.
 
 pub mod advice;
+pub mod coverage;
 pub mod grade;
 mod pairs;
 mod recording;
@@ -255,6 +259,7 @@ fn diagnose_at(
 ) -> Result<Attempt, String> {
     // Steps 1-5.
     let rec = recording::analyse(params, measurements, documented, options, progress)?;
+    let unmeasured_loops = coverage::unmeasured_loops(params, measurements, &rec.infos)?;
     let plan_data: Vec<Vec<ExperimentData<'_>>> = rec
         .start_sets
         .iter()
@@ -354,6 +359,7 @@ fn diagnose_at(
         refit_result,
         constants_range,
         model_error_m,
+        unmeasured_loops,
     });
     Ok(Attempt::Done(Box::new(run)))
 }
@@ -372,6 +378,7 @@ struct Assembly<'a> {
     refit_result: CandidateResult,
     constants_range: ConstantsRange,
     model_error_m: f64,
+    unmeasured_loops: Vec<coverage::UnmeasuredLoop>,
 }
 
 /// The report and the traces: the verdict with the effects the parameter file models, the
@@ -390,6 +397,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         refit_result,
         constants_range,
         model_error_m,
+        unmeasured_loops,
     } = a;
     let mut additional_effects: Vec<String> = second
         .winner
@@ -454,6 +462,20 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
             graded.either_reason
         );
     }
+    let dynamic_count = rec.infos.iter().filter(|i| !i.quasi_static).count();
+    let unmeasured_loops_warning = coverage::warning(&unmeasured_loops, dynamic_count);
+    if unmeasured_loops_warning.is_some() && name != "none" {
+        reason = format!(
+            "{reason}; the parameter file's masses were not measured on {} of the {dynamic_count} \
+             dynamic loops (unmeasured_loops): part of the gap may be theirs, not an effect's",
+            unmeasured_loops.len()
+        );
+    }
+    let rig = advice::Rig {
+        resonance_hz: params.actuator.resonance_hz,
+        current_limit_a: params.control.current_limit_a,
+        sample_rate_hz: rec.rate_hz,
+    };
     let advice = {
         let named: Vec<String> = std::iter::once(name.clone())
             .chain(additional_effects.iter().cloned())
@@ -471,7 +493,10 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
             .cloned()
             .chain(also_significant.iter().map(|a| a.effect.clone()))
             .collect();
-        advice::advise(
+        let mut advice: Vec<advice::Advice> = advice::measure_loops(&unmeasured_loops, rig)
+            .into_iter()
+            .collect();
+        advice.extend(advice::advise(
             &advice::candidate_pairs(
                 &named,
                 &graded.either,
@@ -480,12 +505,10 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
                 graded.grade,
             ),
             &rec.infos,
-            advice::Rig {
-                resonance_hz: params.actuator.resonance_hz,
-                current_limit_a: params.control.current_limit_a,
-                sample_rate_hz: rec.rate_hz,
-            },
-        )
+            rig,
+        ));
+        advice.truncate(advice::MAX_ADVICE);
+        advice
     };
     // (A `none` the parameter file's own effects replaced above is not `none`.)
     let none_by_model_error = verdict.none_by_model_error && name == "none";
@@ -521,6 +544,8 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
                 .into_iter()
                 .map(String::from)
                 .collect(),
+            unmeasured_loops,
+            unmeasured_loops_warning,
             refitted_nominal: refit_result,
             nuisance: rec.nuisance,
             experiments: rec.infos,

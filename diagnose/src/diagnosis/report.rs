@@ -175,6 +175,13 @@ pub struct Diagnosis {
     /// its model did not describe the data it was identified from), repeated so that a verdict
     /// is never read without them.
     pub parameter_file_warnings: Vec<String>,
+    /// The dataset's dynamic loops that the parameter file's masses were not measured on
+    /// ([`super::coverage`]): there the model predicts by the identification's smoothness
+    /// alone, and a gap may be the masses'.
+    pub unmeasured_loops: Vec<super::coverage::UnmeasuredLoop>,
+    /// The warning for them, repeated next to the verdict (`None`: every loop measured, or a
+    /// file that does not record where its masses were measured).
+    pub unmeasured_loops_warning: Option<String>,
     /// The refitted nominal model (step 6).
     pub refitted_nominal: CandidateResult,
     /// The nuisances (step 2).

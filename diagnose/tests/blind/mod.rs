@@ -219,9 +219,12 @@ pub fn rod_of_case(i: usize) -> maglab_plant::Rod {
 
 /// Whether `BLIND_RODS=families` asks for the rod mode: each case on a rod of its own
 /// ([`rod_of_case`]), diagnosed against the file `maglab identify` makes from that rod's
-/// effect-free standard dataset (`maglab_plant::bench::identification_design`, 20 nm of noise):
-/// the nominal file a bench could have, since no file of the model's form describes such a rod
-/// exactly.
+/// effect-free standard dataset with quasi-static loops on the case's own loops
+/// (`maglab_plant::bench::identification_design_covering`, 20 nm of noise): the nominal file a
+/// bench could have, since no file of the model's form describes such a rod exactly. The masses
+/// are measured where the case's experiments run, as `maglab identify` asks of a dataset
+/// (`maglab_identify::coverage`): a file whose masses were never measured on a loop predicts it
+/// by the smoothness of its fit alone, which is no effect of the library.
 pub fn rods_from_env() -> bool {
     match std::env::var("BLIND_RODS").as_deref() {
         Err(_) | Ok("") | Ok("off") => false,
@@ -230,10 +233,19 @@ pub fn rods_from_env() -> bool {
     }
 }
 
-/// The nominal file of `rod`: identified from its effect-free standard dataset.
+/// Loops of a case within this of each other's bias and amplitude are one (the sweep's
+/// frequencies jitter, its amplitudes do not).
+pub const LOOP_TOLERANCE_A: f64 = 0.01;
+
+/// Numbers the rod datasets' folders of this process (cases identify in parallel).
+static NEXT_DIR: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// The nominal file of `rod`: identified from its effect-free standard dataset with a
+/// quasi-static sine on each of `loops` (`(bias, amplitude)`, A) as well.
 pub fn identified_nominal(
     params: &actuator_params::ActuatorParams,
     rod: &maglab_plant::Rod,
+    loops: &[(f64, f64)],
 ) -> actuator_params::ActuatorParams {
     use maglab_identify::experiments::ClassifyOptions;
     use maglab_identify::pipeline::{identify, Base, IdentifyOptions, RecordedDataset};
@@ -245,14 +257,15 @@ pub fn identified_nominal(
     let plant = maglab_plant::Plant::with_rod(params, rod, &[], settings.rate_hz).expect("plant");
     let recordings = bench::record_all_on(
         plant,
-        &bench::identification_design(settings.rate_hz),
+        &bench::identification_design_covering(settings.rate_hz, loops),
         &settings,
     )
     .expect("the rod's standard dataset");
     let dir = std::env::temp_dir().join(format!(
-        "maglab-blind-rod-{}-{}",
+        "maglab-blind-rod-{}-{}-{}",
         rod.label().replace(':', "-"),
-        std::process::id()
+        std::process::id(),
+        NEXT_DIR.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
     ));
     let _ = std::fs::remove_dir_all(&dir);
     bench::write_dataset(&dir, &recordings).expect("write");
@@ -278,10 +291,6 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
     let design = design_from_env();
     let forms = forms_from_env();
     let rods = rods_from_env();
-    // One identification per distinct rod (the cases of a rod share its nominal file).
-    let nominals: std::sync::Mutex<
-        std::collections::HashMap<String, std::sync::Arc<actuator_params::ActuatorParams>>,
-    > = Default::default();
     let kinds = suite::kinds(seed, count);
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
@@ -306,19 +315,14 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
                     forms,
                 )
                 .expect("the case is drawn");
+                // Each case's rod is identified on the loops the case runs (one file per case).
                 let nominal = match &rod {
-                    None => std::sync::Arc::new(params.clone()),
-                    Some(r) => {
-                        let cached = nominals.lock().expect("no thread panicked").get(&r.label()).cloned();
-                        cached.unwrap_or_else(|| {
-                            let n = std::sync::Arc::new(identified_nominal(&params, r));
-                            nominals
-                                .lock()
-                                .expect("no thread panicked")
-                                .insert(r.label(), n.clone());
-                            n
-                        })
-                    }
+                    None => params.clone(),
+                    Some(r) => identified_nominal(
+                        &params,
+                        r,
+                        &maglab_plant::bench::operating_loops(&case.experiments, LOOP_TOLERANCE_A),
+                    ),
                 };
                 let o = run_case(&params, &nominal, case);
                 if verbose {

@@ -107,11 +107,6 @@ pub fn warnings(
             &m.displacement_m,
         ));
     }
-    let quasi_static_currents: Vec<&[f64]> = quasi_static
-        .measurements
-        .iter()
-        .map(|m| m.current_a.as_slice())
-        .collect();
     let dynamic_currents: Vec<(String, f64, &[f64])> = dynamic_records
         .iter()
         .map(|d| {
@@ -122,7 +117,10 @@ pub fn warnings(
             )
         })
         .collect();
-    let uncovered = coverage::uncovered_loops(&quasi_static_currents, &dynamic_currents);
+    let uncovered = coverage::measured_loops(quasi_static, dynamic_records)
+        .map_or_else(Vec::new, |measured| {
+            coverage::uncovered_loops(&measured, &dynamic_currents)
+        });
     let systematic = dynamic.map(systematic_nrmse).unwrap_or_default();
     let nrmse_of = |file: &str| systematic.iter().find(|(f, _)| f == file).map(|(_, e)| *e);
     warnings.extend(coverage::coverage_warning(

@@ -243,6 +243,12 @@ pub fn identify(
             .details
             .insert(reversible::PROVENANCE_KEY.into(), choice.provenance());
     }
+    if let Some(measured) = crate::coverage::measured_loops(&quasi_static, &split.dynamic) {
+        params.provenance.details.insert(
+            crate::coverage::MeasuredLoops::PROVENANCE_KEY.into(),
+            measured.to_json(),
+        );
+    }
     let warnings = checks::warnings(
         &masses,
         dynamic.as_ref(),
