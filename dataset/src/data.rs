@@ -1,7 +1,16 @@
 //! The measurement format read by every `maglab` command that takes measured data.
 //!
-//! One experiment per CSV file; the header is exactly `t_s,current_a,displacement_m`; every row
-//! holds three finite numbers; time increases with a uniform step. A *dataset* is a folder of such
+//! One experiment per CSV file; the header is exactly `t_s,current_a,displacement_m`, or
+//! `t_s,current_a,displacement_m,coil_current_a` when the bench also records the coil current;
+//! every row holds that many finite numbers; time increases with a uniform step.
+//!
+//! **The two currents.** `current_a` is the current the controller commanded (the amplifier's
+//! input, held or linear between samples as the bench's DAC and amplifier make it);
+//! `coil_current_a`, optional, is the current measured in the coil (the amplifier's
+//! current-monitor output), sampled on the displacement's trigger, with the monitor's own noise.
+//! They differ by the amplifier's dynamics: the command → current record identifies the
+//! amplifier, the current → displacement record the rod. In a dataset either every file has the
+//! column or none does (the tools read one design of bench). A *dataset* is a folder of such
 //! files (`*.csv`, read in name order). Anything else is an error that names the file, the line
 //! (1-based, as an editor shows it), the column and the offending value — no row is skipped, no
 //! value is repaired.
@@ -18,6 +27,13 @@ use std::path::{Path, PathBuf};
 /// The header every measurement file must have, in this order.
 pub const HEADER: [&str; 3] = ["t_s", "current_a", "displacement_m"];
 
+/// The optional fourth column: the measured coil current, A (module docs).
+pub const COIL_CURRENT_COLUMN: &str = "coil_current_a";
+
+/// The header of a file with the measured coil current.
+pub const HEADER_WITH_COIL_CURRENT: [&str; 4] =
+    ["t_s", "current_a", "displacement_m", COIL_CURRENT_COLUMN];
+
 /// Relative tolerance of each time step against the nominal step (see the module docs).
 pub const STEP_TOLERANCE: f64 = 1e-3;
 
@@ -31,10 +47,12 @@ pub struct Measurement {
     pub path: PathBuf,
     /// Sample times, s.
     pub t_s: Vec<f64>,
-    /// Coil current, A.
+    /// Commanded coil current, A (the amplifier's input).
     pub current_a: Vec<f64>,
     /// Displacement of the actuator head, m.
     pub displacement_m: Vec<f64>,
+    /// Measured coil current, A, when the bench records it (module docs).
+    pub coil_current_a: Option<Vec<f64>>,
     /// Nominal sampling step, s.
     pub step_s: f64,
 }
@@ -178,18 +196,25 @@ pub fn check_uniform_time(
 pub fn load_measurement(path: &Path) -> Result<Measurement, DataError> {
     let (header, rows) = read_records(path)?;
     let trimmed: Vec<&str> = header.iter().map(|h| h.trim()).collect();
-    if trimmed != HEADER {
-        let wrong = (0..HEADER.len().max(trimmed.len()))
-            .find(|&k| trimmed.get(k) != HEADER.get(k))
+    let with_coil_current = trimmed == HEADER_WITH_COIL_CURRENT;
+    if trimmed != HEADER && !with_coil_current {
+        let expected: &[&str] = if trimmed.len() > HEADER.len() {
+            &HEADER_WITH_COIL_CURRENT
+        } else {
+            &HEADER
+        };
+        let wrong = (0..expected.len().max(trimmed.len()))
+            .find(|&k| trimmed.get(k) != expected.get(k))
             .unwrap_or(0);
         return Err(DataError::at(
             path,
             1,
             Some(&format!("column {}", wrong + 1)),
             format!(
-                "wrong header `{}`: expected exactly `{}`",
+                "wrong header `{}`: expected exactly `{}` or `{}`",
                 header.join(","),
-                HEADER.join(",")
+                HEADER.join(","),
+                HEADER_WITH_COIL_CURRENT.join(",")
             ),
         ));
     }
@@ -212,11 +237,15 @@ pub fn load_measurement(path: &Path) -> Result<Measurement, DataError> {
     let mut t_s = Vec::with_capacity(n);
     let mut current_a = Vec::with_capacity(n);
     let mut displacement_m = Vec::with_capacity(n);
+    let mut coil_current_a = Vec::with_capacity(if with_coil_current { n } else { 0 });
     let mut lines = Vec::with_capacity(n);
     for (line, fields) in &rows {
         t_s.push(parse_finite(path, *line, HEADER[0], &fields[0])?);
         current_a.push(parse_finite(path, *line, HEADER[1], &fields[1])?);
         displacement_m.push(parse_finite(path, *line, HEADER[2], &fields[2])?);
+        if with_coil_current {
+            coil_current_a.push(parse_finite(path, *line, COIL_CURRENT_COLUMN, &fields[3])?);
+        }
         lines.push(*line);
     }
     let step_s = check_uniform_time(path, HEADER[0], &t_s, &lines)?;
@@ -225,6 +254,7 @@ pub fn load_measurement(path: &Path) -> Result<Measurement, DataError> {
         t_s,
         current_a,
         displacement_m,
+        coil_current_a: with_coil_current.then_some(coil_current_a),
         step_s,
     })
 }
@@ -262,6 +292,26 @@ pub fn load_dataset(dir: &Path) -> Result<Dataset, DataError> {
         .iter()
         .map(|p| load_measurement(p))
         .collect::<Result<Vec<_>, _>>()?;
+    if let Some(first) = measurements.first() {
+        let has = |m: &Measurement| m.coil_current_a.is_some();
+        if let Some(other) = measurements.iter().find(|m| has(m) != has(first)) {
+            let (with, without) = if has(first) {
+                (first, other)
+            } else {
+                (other, first)
+            };
+            return Err(DataError::at(
+                &without.path,
+                1,
+                Some(COIL_CURRENT_COLUMN),
+                format!(
+                    "no `{COIL_CURRENT_COLUMN}` column, but {} has one: in a dataset every file \
+                     records the coil current or none does",
+                    with.path.display()
+                ),
+            ));
+        }
+    }
     Ok(Dataset {
         dir: dir.to_path_buf(),
         measurements,
@@ -269,25 +319,47 @@ pub fn load_dataset(dir: &Path) -> Result<Dataset, DataError> {
     })
 }
 
-/// Writes a measurement file in the format above (full f64 precision).
+/// Writes a measurement file in the format above (full f64 precision), with the
+/// `coil_current_a` column when `coil_current_a` is given. Every column must have the samples
+/// of `t_s`.
 pub fn write_measurement(
     path: &Path,
     t_s: &[f64],
     current_a: &[f64],
     displacement_m: &[f64],
+    coil_current_a: Option<&[f64]>,
 ) -> Result<(), DataError> {
+    let n = t_s.len();
+    for (column, len) in [
+        (HEADER[1], current_a.len()),
+        (HEADER[2], displacement_m.len()),
+        (COIL_CURRENT_COLUMN, coil_current_a.map_or(n, <[f64]>::len)),
+    ] {
+        if len != n {
+            return Err(DataError::file(
+                path,
+                format!("column `{column}`: {len} samples to write, but {n} time stamps"),
+            ));
+        }
+    }
     let mut writer = csv::Writer::from_path(path)
         .map_err(|e| DataError::file(path, format!("cannot create: {e}")))?;
     let io = |e: csv::Error| DataError::file(path, format!("cannot write: {e}"));
-    writer.write_record(HEADER).map_err(io)?;
-    for k in 0..t_s.len().min(current_a.len()).min(displacement_m.len()) {
-        writer
-            .write_record([
-                format!("{:e}", t_s[k]),
-                format!("{:e}", current_a[k]),
-                format!("{:e}", displacement_m[k]),
-            ])
-            .map_err(io)?;
+    match coil_current_a {
+        Some(_) => writer.write_record(HEADER_WITH_COIL_CURRENT),
+        None => writer.write_record(HEADER),
+    }
+    .map_err(io)?;
+    for k in 0..n {
+        let mut row = vec![
+            format!("{:e}", t_s[k]),
+            format!("{:e}", current_a[k]),
+            format!("{:e}", displacement_m[k]),
+        ];
+        if let Some(c) = coil_current_a {
+            row.push(format!("{:e}", c[k]));
+        }
+        writer.write_record(row).map_err(io)?;
     }
     writer
         .flush()

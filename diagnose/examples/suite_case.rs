@@ -22,6 +22,7 @@ fn main() {
         blind::forms_from_env(),
     )
     .unwrap();
+    let case = blind::with_coil_current_from_env(case);
     let nominal = rod.as_ref().map_or_else(
         || params.clone(),
         |r| {
@@ -38,6 +39,9 @@ fn main() {
         o.named, o.correct, o.seconds, d.verdict_reason
     );
     println!("nuisance {:?}", d.nuisance.estimated);
+    if let Some(c) = &d.coil_current {
+        println!("coil current: {c:?}");
+    }
     println!(
         "noise {:.3e} range {:.3e} file-nominal rms {:.3e}",
         d.noise_m, d.displacement_range_m, d.nominal_rms_m

@@ -23,6 +23,7 @@ mod breakdown {
             t_s: t_s.clone(),
             current_a: t_s.iter().map(|&t| current(t)).collect(),
             displacement_m: t_s.iter().map(|&t| y_of(t - lag_s)).collect(),
+            coil_current_a: None,
             step_s: 1.0 / rate_hz,
         };
         let model = t_s.iter().map(|&t| y_of(t)).collect();
@@ -276,21 +277,27 @@ mod grade {
     fn partly_explained_needs_more_than_half_in_every_band() {
         // Removes 75 % of the energy overall and in both bands.
         let c = candidate("creep", 0.5e-6, &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)], false);
-        let g = grade("unexplained", &[], std::slice::from_ref(&c), 0.0, 1e-4);
+        let g = grade(
+            "unexplained",
+            &[],
+            std::slice::from_ref(&c),
+            (0.0, 1e-4),
+            false,
+        );
         assert_eq!(g.grade, Grade::PartlyExplained);
         let p = g.partly.unwrap();
         assert!((p.share_of_gap - 0.75).abs() < 1e-12, "{p:?}");
         // One band barely helped: unexplained.
         let c = candidate("creep", 0.5e-6, &[(1e-6, 0.2e-6), (1e-6, 0.9e-6)], false);
         assert_eq!(
-            grade("unexplained", &[], &[c], 0.0, 1e-4).grade,
+            grade("unexplained", &[], &[c], (0.0, 1e-4), false).grade,
             Grade::Unexplained
         );
         // A pinned parameter is no explanation, even in part.
         let mut c = candidate("creep", 0.5e-6, &[(1e-6, 0.5e-6)], false);
         c.pinned.push("ratio".into());
         assert_eq!(
-            grade("unexplained", &[], &[c], 0.0, 1e-4).grade,
+            grade("unexplained", &[], &[c], (0.0, 1e-4), false).grade,
             Grade::Unexplained
         );
     }
@@ -304,20 +311,30 @@ mod grade {
             "sensor_dynamics",
             &[],
             &[a.clone(), b, c.clone()],
-            0.0,
-            1e-4,
+            (0.0, 1e-4),
+            false,
         );
         assert_eq!(g.grade, Grade::Either);
         assert_eq!(g.either, ["sensor_dynamics", "amplifier_bandwidth"]);
         assert_eq!(
-            grade("sensor_dynamics", &[], &[a.clone(), c], 0.0, 1e-4).grade,
+            grade("sensor_dynamics", &[], &[a.clone(), c], (0.0, 1e-4), false).grade,
             Grade::Effect
         );
         assert_eq!(
-            grade("sensor_dynamics", &["creep".into()], &[a], 0.0, 1e-4).grade,
+            grade(
+                "sensor_dynamics",
+                &["creep".into()],
+                &[a],
+                (0.0, 1e-4),
+                false
+            )
+            .grade,
             Grade::Pair
         );
-        assert_eq!(grade("none", &[], &[], 0.0, 1e-4).grade, Grade::None);
+        assert_eq!(
+            grade("none", &[], &[], (0.0, 1e-4), false).grade,
+            Grade::None
+        );
     }
 
     #[test]
@@ -328,8 +345,8 @@ mod grade {
             "eddy_frequency_dependence",
             &[],
             &[eddy.clone(), amp.clone()],
-            0.0,
-            1e-4,
+            (0.0, 1e-4),
+            false,
         );
         assert_eq!(g.grade, Grade::Either);
         assert_eq!(
@@ -337,11 +354,23 @@ mod grade {
             ["eddy_frequency_dependence", "amplifier_bandwidth"]
         );
         assert!(g.either_reason.contains("back-EMF"), "{}", g.either_reason);
+        // With the coil current measured the channel separates them: an eddy path alone.
+        assert_eq!(
+            grade(
+                "eddy_frequency_dependence",
+                &[],
+                &[eddy.clone(), amp.clone()],
+                (0.0, 1e-4),
+                true
+            )
+            .grade,
+            Grade::Effect
+        );
         // Not the converse: the library's amplifier is a lag on the command the fits separate.
         let amp = candidate("amplifier_bandwidth", 1.0e-7, &[], true);
         let eddy = candidate("eddy_frequency_dependence", 5.0e-7, &[], false);
         assert_eq!(
-            grade("amplifier_bandwidth", &[], &[amp, eddy], 0.0, 1e-4).grade,
+            grade("amplifier_bandwidth", &[], &[amp, eddy], (0.0, 1e-4), false).grade,
             Grade::Effect
         );
     }
@@ -373,6 +402,7 @@ mod advice {
         resonance_hz: 392.0,
         current_limit_a: 2.0,
         sample_rate_hz: 10_000.0,
+        coil_current_measured: false,
     };
 
     #[test]
@@ -552,6 +582,7 @@ mod coverage {
             t_s: (0..n).map(|k| k as f64 / 1e4).collect(),
             displacement_m: vec![0.0; n],
             current_a,
+            coil_current_a: None,
             step_s: 1e-4,
         };
         let info = ExperimentInfo {
@@ -599,6 +630,7 @@ mod coverage {
             resonance_hz: 392.0,
             current_limit_a: 2.0,
             sample_rate_hz: 10_000.0,
+            coil_current_measured: false,
         };
         let advice = measure_loops(&loops, rig).unwrap();
         assert_eq!(advice.recording, Recording::MeasuredLoops);

@@ -63,7 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             gain * m * m + noise.sample(&mut rng)
         })
         .collect();
-    write_measurement(&dir.join("forc.csv"), &e.t_s, &e.current_a, &y)?;
+    write_measurement(&dir.join("forc.csv"), &e.t_s, &e.current_a, &y, None)?;
 
     // (frequency, sample rate, duration, ramp from 0 A)
     let mut jobs: Vec<(f64, f64, f64, f64)> = [20.0f64, 40.0, 70.0, 100.0, 140.0, 200.0]
@@ -105,7 +105,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut rng = rand::rngs::StdRng::seed_from_u64(100 + k as u64);
         let y: Vec<f64> = y.iter().map(|v| v + noise.sample(&mut rng)).collect();
         let path = dir.join(format!("sine_{f:05.1}hz.csv"));
-        write_measurement(&path, &t, &i, &y)?;
+        write_measurement(&path, &t, &i, &y, None)?;
         println!("wrote {}", path.display());
     }
     println!("wrote {}", dir.join("forc.csv").display());

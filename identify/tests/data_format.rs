@@ -150,3 +150,78 @@ fn a_dataset_reads_csv_files_in_order_and_lists_the_rest() {
         .reason
         .contains("no measurement files"));
 }
+
+#[test]
+fn the_coil_current_column_is_read_checked_and_written_back() {
+    let with =
+        "t_s,current_a,displacement_m,coil_current_a\n0,0.1,1e-6,0.09\n0.001,0.2,2e-6,0.19\n\
+                0.002,0.3,3e-6,0.29\n";
+    let m = load_measurement(&write("coil.csv", with)).unwrap();
+    assert_eq!(m.coil_current_a, Some(vec![0.09, 0.19, 0.29]));
+    assert_eq!(
+        load_measurement(&write("plain.csv", GOOD))
+            .unwrap()
+            .coil_current_a,
+        None
+    );
+    // A bad value names the column.
+    let e = err(
+        "coil-nan.csv",
+        "t_s,current_a,displacement_m,coil_current_a\n0,0.1,1e-6,0.1\n0.001,0.2,2e-6,x\n\
+         0.002,0.3,3e-6,0.3\n",
+    );
+    assert_eq!(
+        (e.line, e.column.as_deref()),
+        (Some(3), Some("coil_current_a"))
+    );
+    // A fourth column of another name names it and both headers.
+    let e = err(
+        "coil-name.csv",
+        "t_s,current_a,displacement_m,coil_current_mA\n0,1,1,1\n1,1,1,1\n2,1,1,1\n",
+    );
+    assert_eq!(e.column.as_deref(), Some("column 4"));
+    assert!(e.reason.contains("coil_current_a"), "{e}");
+    // Written back with the column, read back equal.
+    let path = write("coil-written.csv", "");
+    maglab_dataset::data::write_measurement(
+        &path,
+        &m.t_s,
+        &m.current_a,
+        &m.displacement_m,
+        m.coil_current_a.as_deref(),
+    )
+    .unwrap();
+    assert_eq!(
+        load_measurement(&path).unwrap().coil_current_a,
+        m.coil_current_a
+    );
+    // A column of another length than the time stamps is refused, naming it.
+    let e = maglab_dataset::data::write_measurement(
+        &path,
+        &m.t_s,
+        &m.current_a,
+        &m.displacement_m,
+        Some(&[0.1]),
+    )
+    .unwrap_err();
+    assert!(e.reason.contains("coil_current_a"), "{e}");
+}
+
+#[test]
+fn a_dataset_records_the_coil_current_in_every_file_or_in_none() {
+    let dir = std::env::temp_dir().join(format!("maglab-coil-mixed-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("a.csv"), GOOD).unwrap();
+    std::fs::write(
+        dir.join("b.csv"),
+        "t_s,current_a,displacement_m,coil_current_a\n0,0.1,1e-6,0.1\n0.001,0.2,2e-6,0.2\n\
+         0.002,0.3,3e-6,0.3\n",
+    )
+    .unwrap();
+    let e = load_dataset(&dir).unwrap_err();
+    assert_eq!(e.path, dir.join("a.csv"));
+    assert_eq!(e.column.as_deref(), Some("coil_current_a"));
+    assert!(e.reason.contains("b.csv"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -151,7 +151,7 @@ fn phase_lag_scheme_recovers_eddy_resistance_and_damping() {
             model.displacement_m(m) + noise.sample(&mut rng)
         })
         .collect();
-    write_measurement(&dir.join("forc.csv"), &e.t_s, &e.current_a, &y).unwrap();
+    write_measurement(&dir.join("forc.csv"), &e.t_s, &e.current_a, &y, None).unwrap();
 
     // Dynamic: sines with DC bias at 6 frequencies up to 200 Hz.
     // Plus the same biased sine at 1 Hz (3 periods at 1 kHz): quasi-static data on the very
@@ -174,7 +174,7 @@ fn phase_lag_scheme_recovers_eddy_resistance_and_damping() {
         let mut rng = rand::rngs::StdRng::seed_from_u64(100 + k as u64);
         let y: Vec<f64> = y.iter().map(|v| v + noise.sample(&mut rng)).collect();
         let t: Vec<f64> = (0..i.len()).map(|k| k as f64 / rate).collect();
-        write_measurement(&dir.join(format!("sine_{f:05.1}hz.csv")), &t, i, &y).unwrap();
+        write_measurement(&dir.join(format!("sine_{f:05.1}hz.csv")), &t, i, &y, None).unwrap();
     }
     println!("data generated in {:.1} s", started.elapsed().as_secs_f64());
 

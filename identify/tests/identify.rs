@@ -25,7 +25,7 @@ fn dataset(name: &str, current: &[f64], y: &[f64]) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("maglab-identify-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let t: Vec<f64> = (0..current.len()).map(|k| k as f64 * 1e-3).collect();
-    write_measurement(&dir.join("run.csv"), &t, current, y).unwrap();
+    write_measurement(&dir.join("run.csv"), &t, current, y, None).unwrap();
     dir
 }
 

@@ -251,6 +251,7 @@ fn forc(args: &Args, params: &actuator_params::ActuatorParams, origin: &str) -> 
             &excitation.t_s,
             &excitation.current_a,
             &y,
+            None,
         )?;
         println!(
             "wrote {} with the displacement PREDICTED by the static model (6) of {origin} \

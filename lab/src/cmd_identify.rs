@@ -254,6 +254,13 @@ fn print_dataset(args: &Args, dataset: &RecordedDataset) {
             c.reason
         );
     }
+    if let Some(a) = &dataset.amplifier {
+        println!(
+            "coil current recorded: the rod is identified from the measured current; the \
+             amplifier: {}",
+            a.reason
+        );
+    }
 }
 
 /// Everything the identification found, in the order it was found.

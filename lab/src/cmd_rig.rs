@@ -84,6 +84,13 @@ pub struct Args {
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Also record the coil current (the amplifier's current monitor, on the displacement's
+    /// trigger) with this white noise, A: the `coil_current_a` column.
+    #[arg(long, value_name = "A")]
+    pub coil_current_noise_a: Option<f64>,
+    /// The coil current's quantization step, A (with `--coil-current-noise-a`; 0 = none).
+    #[arg(long, default_value_t = 1e-3, value_name = "A")]
+    pub coil_current_quantization_a: f64,
     /// Also write the effects and nuisances (the ground truth) to this JSON file (keep it
     /// outside the dataset).
     #[arg(long, value_name = "FILE")]
@@ -138,6 +145,12 @@ pub fn run(args: &Args) -> Result<()> {
         noise_m: args.noise_m,
         quantization_m: args.quantization_m,
         seed: args.seed,
+        coil_current: args
+            .coil_current_noise_a
+            .map(|noise_a| maglab_plant::CurrentMonitor {
+                noise_a,
+                quantization_a: args.coil_current_quantization_a,
+            }),
     };
     settings.check().map_err(|e| anyhow!(e))?;
     let mut experiments = Vec::new();

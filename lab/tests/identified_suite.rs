@@ -17,7 +17,8 @@
 //! candidates (`advice`, printed beside each miss), then ≥ 90 % correct. For the noise-only cases it also prints the identified
 //! R_eddy, ξ, f0 against the plant's and how many have all three within 3 % (not asserted).
 //! `IDENTIFIED_DESIGN=varied` records the sines in a design drawn per case (frequencies,
-//! amplitudes, bias, rate, duration: `maglab_plant::suite::Design`).
+//! amplitudes, bias, rate, duration: `maglab_plant::suite::Design`);
+//! `IDENTIFIED_COIL_CURRENT=measured` records the coil current as well (`coil_current_a`).
 //!
 //! **Ignored in `cargo test`: it does not reach 90 %.** The identification absorbs part of a lag
 //! (an amplifier's, a sensor's, a load's) into R_eddy, ξ, f0 identified from the same sines, and
@@ -71,13 +72,20 @@ fn write_case(
     let params = actuator_params::paper_defaults();
     // `IDENTIFIED_DESIGN=varied`: the sines in a design drawn per case (`suite::Design`).
     let design = suite::Design::from_env("IDENTIFIED_DESIGN").unwrap_or_else(|e| panic!("{e}"));
-    let case = suite::draw_with(
+    let mut case = suite::draw_with(
         &params,
         seed.wrapping_mul(1000).wrapping_add(index as u64),
         kind,
         design,
     )
     .expect("the case is drawn");
+    // `IDENTIFIED_COIL_CURRENT=measured`: the bench records the coil current too (a typical
+    // current monitor, `maglab_plant::CurrentMonitor::TYPICAL`); the draws are the same.
+    match std::env::var("IDENTIFIED_COIL_CURRENT").as_deref() {
+        Err(_) | Ok("") | Ok("off") => {}
+        Ok("measured") => case.settings.coil_current = Some(maglab_plant::CurrentMonitor::TYPICAL),
+        Ok(other) => panic!("IDENTIFIED_COIL_CURRENT `{other}`: expected `measured` or `off`"),
+    }
     let rate = case.settings.rate_hz;
     let mut experiments = vec![forc_experiment(&params, 1.0, rate).expect("FORC sweep")];
     experiments.extend(case.experiments.iter().cloned());

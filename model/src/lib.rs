@@ -9,6 +9,8 @@
 //!   ranges and starting points;
 //! * [`fit`]: Levenberg-Marquardt fits on training experiments with the electromagnetic stage
 //!   cached; [`plan_fit`]: the same with the start plan that suits each candidate;
+//! * [`coil_current`]: the amplifier judged on the commanded against the measured coil current,
+//!   and the measured current as the model's input;
 //! * [`coverage`]: which minor loops a file's Preisach masses were measured on;
 //! * [`experiments`]: each record's fundamental, amplitude, bias, settling; quasi-static or not;
 //! * [`nuisance`]: the recording's start states, current between samples and channel skew,
@@ -19,6 +21,7 @@
 //! it on the bench plant of `maglab-plant`, whose equations it does not share.
 
 pub mod candidates;
+pub mod coil_current;
 pub mod coverage;
 pub mod effects;
 pub mod experiments;

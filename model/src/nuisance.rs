@@ -100,12 +100,14 @@ pub struct NuisanceEstimate {
     pub rms_linear: f64,
 }
 
-/// Step 2 with the model `electro`, `mech`: the start plan, then the current between samples, the
-/// skew by golden section on the mechanical stage (one electromagnetic run per plan and
+/// Step 2 with the model `electro`, `mech`: the start plan, then the current between samples
+/// (among `interpolations`: linear is always tried; hold when listed, and kept when it fits
+/// better; `rms_hold` is infinite when it is not tried), the skew by golden section on the mechanical stage (one electromagnetic run per plan and
 /// interpolation), over the first `probe_lens` samples of the `dynamic` experiments.
 #[allow(clippy::too_many_arguments)]
 pub fn estimate_nuisances(
     linear_setup: &ModelSetup<'_>,
+    interpolations: &[CurrentBetweenSamples],
     measurements: &[Measurement],
     settles: &[usize],
     dynamic: &[usize],
@@ -161,7 +163,11 @@ pub fn estimate_nuisances(
         .min_by(|&a, &b| plan_fits[a].0.total_cmp(&plan_fits[b].0))
         .unwrap_or(0);
     let (rms_linear, skew_linear) = plan_fits[plan];
-    let (rms_hold, skew_hold) = estimate(CurrentBetweenSamples::Hold, &start_sets[plan].1);
+    let (rms_hold, skew_hold) = if interpolations.contains(&CurrentBetweenSamples::Hold) {
+        estimate(CurrentBetweenSamples::Hold, &start_sets[plan].1)
+    } else {
+        (f64::INFINITY, 0.0)
+    };
     let (interpolation, skew) = if rms_hold < rms_linear {
         (CurrentBetweenSamples::Hold, skew_hold)
     } else {

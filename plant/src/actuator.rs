@@ -293,6 +293,10 @@ pub struct Plant {
     /// Sensor output (before delay, nonlinearity, offset, noise) at every substep, oldest first,
     /// with the time of the first entry.
     history: Vec<f64>,
+    /// The coil current at the start of every substep (what a current monitor reads just
+    /// after the command's update: a held command is a staircase, read on its new step), A,
+    /// from the same time as `history`.
+    current_history: Vec<f64>,
     history_t0_s: f64,
     keep_history: bool,
     scratch: Scratch,
@@ -396,6 +400,7 @@ impl Plant {
             backlash_y_prev: 0.0,
             dahl_accel: 0.0,
             history: Vec::new(),
+            current_history: Vec::new(),
             history_t0_s: 0.0,
             keep_history: true,
             scratch: Scratch::default(),
@@ -501,6 +506,7 @@ impl Plant {
         let s = self.sensor_state_output();
         self.history.clear();
         self.history.push(s);
+        self.current_history.clear();
         self.history_t0_s = 0.0;
         Ok(())
     }
@@ -523,6 +529,7 @@ impl Plant {
         self.x[S2] = v_m_per_s;
         self.history.clear();
         self.history.push(self.sensor_state_output());
+        self.current_history.clear();
         self.history_t0_s = self.t_s;
     }
 
@@ -866,6 +873,17 @@ impl Plant {
         }
     }
 
+    /// Whether the coil current is a state of its own (an amplifier with dynamics) rather than
+    /// the command or an algebraic function of it.
+    fn current_is_state(&self) -> bool {
+        self.fx.amplifier.is_some_and(|a| {
+            matches!(
+                a.form,
+                AmplifierForm::SecondOrder | AmplifierForm::FirstOrder
+            )
+        })
+    }
+
     /// Advances one sample interval with the command going from `command_start_a` to
     /// `command_end_a` (equal for a held command).
     pub fn advance(&mut self, command_start_a: f64, command_end_a: f64) {
@@ -882,6 +900,13 @@ impl Plant {
             let f0 = s as f64 / self.substeps as f64;
             let fh = (s as f64 + 0.5) / self.substeps as f64;
             let f1 = (s as f64 + 1.0) / self.substeps as f64;
+            if self.keep_history {
+                self.current_history.push(if self.current_is_state() {
+                    self.x[I_COIL]
+                } else {
+                    self.coil_current(cmd(f0), &self.x).0
+                });
+            }
             w.x0.copy_from_slice(&self.x);
             let [k1, k2, k3, k4] = &mut w.k;
             self.derivatives(cmd(f0), &w.x0, k1);
@@ -900,13 +925,7 @@ impl Plant {
             for q in 0..n {
                 self.x[q] = w.x0[q] + dt / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q]);
             }
-            let current_is_state = self.fx.amplifier.is_some_and(|a| {
-                matches!(
-                    a.form,
-                    AmplifierForm::SecondOrder | AmplifierForm::FirstOrder
-                )
-            });
-            if !current_is_state {
+            if !self.current_is_state() {
                 self.x[I_COIL] = self.coil_current(cmd(f1), &self.x).0;
             }
             self.commit(w.x0[V1], w.x0[Y1]);
@@ -1040,20 +1059,32 @@ impl Plant {
         }
     }
 
+    /// The coil current at experiment time `t_s` (what an ideal current monitor reads, before
+    /// its noise): linear between substeps, the start value before the history, the last one
+    /// after it. It must not lie beyond the simulated time.
+    pub fn coil_current_at(&self, t_s: f64) -> f64 {
+        self.at(&self.current_history, t_s)
+    }
+
     /// The sensor's continuous output at `t_s`, linear between substeps; the start value before
     /// the history, the last one after it.
     fn history_at(&self, t_s: f64) -> f64 {
+        self.at(&self.history, t_s)
+    }
+
+    /// `series` (one value per substep from `history_t0_s`) at `t_s`, linear between substeps.
+    fn at(&self, series: &[f64], t_s: f64) -> f64 {
         let dt = self.sample_s / self.substeps as f64;
         let pos = (t_s - self.history_t0_s) / dt;
-        if pos <= 0.0 || self.history.len() < 2 {
-            self.history.first().copied().unwrap_or(0.0)
+        if pos <= 0.0 || series.len() < 2 {
+            series.first().copied().unwrap_or(0.0)
         } else {
             let i = pos.floor() as usize;
-            if i + 1 >= self.history.len() {
-                *self.history.last().unwrap_or(&0.0)
+            if i + 1 >= series.len() {
+                *series.last().unwrap_or(&0.0)
             } else {
                 let frac = pos - i as f64;
-                self.history[i] * (1.0 - frac) + self.history[i + 1] * frac
+                series[i] * (1.0 - frac) + series[i + 1] * frac
             }
         }
     }
@@ -1066,6 +1097,8 @@ impl Plant {
         if self.history.len() > 2 * keep {
             let drop = self.history.len() - keep;
             self.history.drain(..drop);
+            self.current_history
+                .drain(..drop.min(self.current_history.len()));
             self.history_t0_s += drop as f64 * dt;
         }
     }

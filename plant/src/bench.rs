@@ -41,7 +41,32 @@ pub struct BenchSettings {
     pub quantization_m: f64,
     /// Seed of the noise (experiment `k` uses `seed + k`).
     pub seed: u64,
+    /// The coil-current channel, when the bench records it (`coil_current_a`).
+    pub coil_current: Option<CurrentMonitor>,
 }
+
+/// A bench's coil-current channel: the amplifier's current-monitor output, sampled on the
+/// displacement's trigger (at `t_k + skew / rate`, as the displacement), with its own white
+/// noise and quantization (`maglab_dataset::data`, "The two currents").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurrentMonitor {
+    /// White noise of the reading, A (standard deviation).
+    pub noise_a: f64,
+    /// Quantization step of the reading, A (0: none).
+    pub quantization_a: f64,
+}
+
+impl CurrentMonitor {
+    /// A typical monitor read by a 12-bit ADC over ±2 A: 1 mA of noise, 1 mA steps.
+    pub const TYPICAL: CurrentMonitor = CurrentMonitor {
+        noise_a: 1e-3,
+        quantization_a: 1e-3,
+    };
+}
+
+/// The seed stream of the coil current's noise, apart from the displacement's (the same seed
+/// gives the same displacement noise with and without the channel).
+const CURRENT_NOISE_STREAM: u64 = 0xc011_c0de_0000_0001;
 
 impl Default for BenchSettings {
     fn default() -> Self {
@@ -53,6 +78,7 @@ impl Default for BenchSettings {
             noise_m: 0.15e-6,
             quantization_m: 2e-9,
             seed: 1,
+            coil_current: None,
         }
     }
 }
@@ -79,6 +105,13 @@ impl BenchSettings {
         }
         if !self.sensor_offset_m.is_finite() {
             return Err("bench `sensor_offset_m` must be finite".into());
+        }
+        if let Some(m) = self.coil_current {
+            for (name, v) in [("noise_a", m.noise_a), ("quantization_a", m.quantization_a)] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(format!("bench `coil_current.{name}` must be >= 0, got {v}"));
+                }
+            }
         }
         Ok(())
     }
@@ -114,6 +147,8 @@ pub struct Recording {
     pub displacement_m: Vec<f64>,
     /// The same without noise and quantization (for tests and calibration), m.
     pub clean_displacement_m: Vec<f64>,
+    /// The measured coil current, when the bench records it ([`BenchSettings::coil_current`]), A.
+    pub coil_current_a: Option<Vec<f64>>,
 }
 
 /// `bias + amplitude sin(2π f t_k)` for `duration_s`.
@@ -385,19 +420,27 @@ pub fn record(
         .iter()
         .map(|&t| plant.sensor_at(t + settings.channel_skew_samples * h) + settings.sensor_offset_m)
         .collect();
-    let mut y = clean.clone();
-    if settings.noise_m > 0.0 {
-        let normal = Normal::new(0.0, settings.noise_m).map_err(|e| format!("noise: {e}"))?;
-        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-        for v in y.iter_mut() {
-            *v += normal.sample(&mut rng);
+    let y = noisy(
+        clean.clone(),
+        settings.noise_m,
+        settings.quantization_m,
+        seed,
+    )?;
+    let coil_current_a = match settings.coil_current {
+        Some(monitor) => {
+            let clean: Vec<f64> = t_s
+                .iter()
+                .map(|&t| plant.coil_current_at(t + settings.channel_skew_samples * h))
+                .collect();
+            Some(noisy(
+                clean,
+                monitor.noise_a,
+                monitor.quantization_a,
+                seed ^ CURRENT_NOISE_STREAM,
+            )?)
         }
-    }
-    if settings.quantization_m > 0.0 {
-        for v in y.iter_mut() {
-            *v = (*v / settings.quantization_m).round() * settings.quantization_m;
-        }
-    }
+        None => None,
+    };
     Ok(Recording {
         name: experiment.name.clone(),
         start: experiment.start,
@@ -406,7 +449,25 @@ pub fn record(
         current_a: cmd.clone(),
         displacement_m: y,
         clean_displacement_m: clean,
+        coil_current_a,
     })
+}
+
+/// `x` with white noise of `sigma` (seeded) and quantized to steps of `step` (0: none).
+fn noisy(mut x: Vec<f64>, sigma: f64, step: f64, seed: u64) -> Result<Vec<f64>, String> {
+    if sigma > 0.0 {
+        let normal = Normal::new(0.0, sigma).map_err(|e| format!("noise: {e}"))?;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        for v in x.iter_mut() {
+            *v += normal.sample(&mut rng);
+        }
+    }
+    if step > 0.0 {
+        for v in x.iter_mut() {
+            *v = (*v / step).round() * step;
+        }
+    }
+    Ok(x)
 }
 
 /// Records every experiment on a plant of `params` with `effects` (see the module docs for the
@@ -469,8 +530,14 @@ pub fn write_dataset(dir: &Path, recordings: &[Recording]) -> Result<Vec<PathBuf
     for r in recordings {
         let file = format!("{}.csv", r.name);
         let path = dir.join(&file);
-        maglab_dataset::data::write_measurement(&path, &r.t_s, &r.current_a, &r.displacement_m)
-            .map_err(|e| e.to_string())?;
+        maglab_dataset::data::write_measurement(
+            &path,
+            &r.t_s,
+            &r.current_a,
+            &r.displacement_m,
+            r.coil_current_a.as_deref(),
+        )
+        .map_err(|e| e.to_string())?;
         info.files.insert(
             file,
             FileInfo {

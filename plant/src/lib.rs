@@ -16,6 +16,6 @@ pub mod rods;
 pub mod suite;
 
 pub use actuator::{Plant, PlantConstants, PLANT_STARTS};
-pub use bench::{BenchSettings, Experiment, Recording};
+pub use bench::{BenchSettings, CurrentMonitor, Experiment, Recording};
 pub use effects::{Effect, EffectSpec, EFFECTS};
 pub use rods::{Family, Rod};

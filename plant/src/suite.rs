@@ -684,6 +684,7 @@ pub fn draw_on(
         noise_m: log_uniform(&mut rng, 0.05e-6, 0.3e-6),
         quantization_m: 2e-9,
         seed: seed.wrapping_mul(31).wrapping_add(7),
+        coil_current: None,
     };
     let starts = [
         StartState::SwitchOnDemagnetized,

@@ -16,6 +16,7 @@ fn settings() -> BenchSettings {
         noise_m: 0.0,
         quantization_m: 0.0,
         seed: 1,
+        coil_current: None,
     }
 }
 

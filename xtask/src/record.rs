@@ -271,7 +271,7 @@ pub fn write_dataset(record: &Record, dir: &Path) -> Result<()> {
             .map(|s| s.reading_m as f64)
             .collect();
         let file = format!("{}.csv", e.name(k));
-        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y)
+        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y, None)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         info.files.insert(
             file,

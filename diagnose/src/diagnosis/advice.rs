@@ -141,6 +141,9 @@ pub struct Rig {
     pub current_limit_a: f64,
     /// The dataset's sampling rate, Hz (the advised records' too).
     pub sample_rate_hz: f64,
+    /// The dataset records the coil current: it needs no advice to, and the amplifier was
+    /// judged on it.
+    pub coil_current_measured: bool,
 }
 
 /// The recording that separates `a` from `b` (`None`: from nothing, i.e. makes `a` largest) and
@@ -280,7 +283,12 @@ pub fn advise(
 ) -> Vec<Advice> {
     let design = Design::of(infos, rig);
     let mut out: Vec<Advice> = Vec::new();
+    // With the coil current recorded the amplifier was judged on it: nothing to separate.
+    let judged = |e: EffectName| rig.coil_current_measured && e == EffectName::AmplifierBandwidth;
     for &(a, b) in pairs {
+        if judged(a) || b.is_some_and(judged) {
+            continue;
+        }
         let (recording, why) = separating(a, b);
         if out.iter().any(|x| x.recording == recording) {
             continue;
@@ -426,7 +434,8 @@ impl Design {
     fn holds(&self, recording: Recording) -> bool {
         let two_biases = self.biases_a.len() >= 2;
         match recording {
-            Recording::CoilCurrent | Recording::ThermalSoak | Recording::MeasuredLoops => false,
+            Recording::CoilCurrent => self.rig.coil_current_measured,
+            Recording::ThermalSoak | Recording::MeasuredLoops => false,
             Recording::QuasiStaticLoops => self.amplitudes_a.iter().all(|&a| {
                 self.quasi_static_amplitudes_a
                     .iter()

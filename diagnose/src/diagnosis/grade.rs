@@ -107,13 +107,14 @@ pub struct Graded {
 }
 
 /// Grades `verdict` (with `additional_effects`) from the single candidates `ranking` (best
-/// first); `noise_m`, `range_m` as the diagnosis measured them.
+/// first); `noise_m`, `range_m` as the diagnosis measured them; `coil_current_measured`: the
+/// dataset records the coil current, which separates the [`SAME_TERM`] pairs.
 pub fn grade(
     verdict: &str,
     additional_effects: &[String],
     ranking: &[CandidateResult],
-    noise_m: f64,
-    range_m: f64,
+    (noise_m, range_m): (f64, f64),
+    coil_current_measured: bool,
 ) -> Graded {
     let graded = |grade| Graded {
         grade,
@@ -141,7 +142,10 @@ pub fn grade(
                 ),
                 ..graded(Grade::Either)
             },
-            None => match SAME_TERM.iter().find(|(w, ..)| *w == winner) {
+            None => match SAME_TERM
+                .iter()
+                .find(|(w, ..)| *w == winner && !coil_current_measured)
+            {
                 Some((_, other, why)) => Graded {
                     either: vec![winner.to_string(), other.to_string()],
                     either_reason: why.to_string(),

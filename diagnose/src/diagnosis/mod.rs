@@ -131,6 +131,7 @@
 //! explanation that needs an implausible effect is none.
 
 pub mod advice;
+pub mod coil_current;
 pub mod coverage;
 pub mod grade;
 mod pairs;
@@ -156,6 +157,7 @@ pub use verdict::{also_significant, effects_identified_into, equal_on_training, 
 
 use maglab_dataset::data::Measurement;
 use maglab_dataset::dataset_info::DatasetInfo;
+use maglab_model::effects::EffectName;
 use maglab_model::experiments::experiment_data;
 use maglab_model::fit::{ExperimentData, FitSettings};
 use maglab_model::plan_fit::PlanFitter;
@@ -172,6 +174,14 @@ pub struct DiagnoseOptions {
     pub substeps: usize,
     /// Fit settings.
     pub fit: FitSettings,
+    /// The candidate effects (the whole library by default; without the amplifier when the
+    /// dataset records the coil current, [`coil_current`]).
+    pub library: Vec<EffectName>,
+    /// The measurements' `current_a` is the measured coil current, not the command
+    /// ([`coil_current`]): a sampled continuous signal, read linear between samples (a held
+    /// reading would be half a sample of delay that no amplifier or DAC makes), with the
+    /// SAME_TERM pairs separated and no advice to record it.
+    pub measured_current_input: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -179,12 +189,59 @@ impl Default for DiagnoseOptions {
         DiagnoseOptions {
             substeps: 1,
             fit: FitSettings::default(),
+            library: EffectName::LIBRARY.to_vec(),
+            measured_current_input: false,
         }
     }
 }
 
 /// Runs the diagnosis on `measurements` with the nominal parameters; `documented` is the
 /// dataset's `dataset.json` when it has one.
+///
+/// When the dataset records the coil current the chain is split at the coil
+/// ([`coil_current`]): the amplifier is judged on the commanded against the measured current,
+/// the rest of the library on the measured current against the displacement
+/// ([`diagnose_displacement`] with the measured current as the input and no amplifier
+/// candidate), and the two verdicts are put together.
+pub fn diagnose(
+    params: &actuator_params::ActuatorParams,
+    measurements: &[Measurement],
+    documented: Option<&DatasetInfo>,
+    options: &DiagnoseOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<DiagnosisRun, String> {
+    let Some(judgement) = coil_current::judge(measurements) else {
+        return diagnose_displacement(params, measurements, documented, options, progress);
+    };
+    let step_s = measurements.first().map_or(1.0, |m| m.step_s);
+    let quasi_static: Vec<bool> = maglab_model::experiments::describe(measurements, 1.0 / step_s)
+        .iter()
+        .map(|i| i.quasi_static)
+        .collect();
+    let on_current = coil_current::with_measured_current(measurements, &quasi_static)
+        .ok_or("the coil current is recorded in some experiments only")?;
+    let without_amplifier = DiagnoseOptions {
+        library: options
+            .library
+            .iter()
+            .copied()
+            .filter(|e| *e != EffectName::AmplifierBandwidth)
+            .collect(),
+        measured_current_input: true,
+        ..options.clone()
+    };
+    let mut run = diagnose_displacement(
+        params,
+        &on_current,
+        documented,
+        &without_amplifier,
+        progress,
+    )?;
+    coil_current::combine(judgement, &mut run.diagnosis);
+    Ok(run)
+}
+
+/// The diagnosis of the displacement against the current the measurements hold.
 ///
 /// When the refitted nominal model's held-out gap is above the noise-based `none` threshold but
 /// within [`MODEL_ERROR_FACTOR`] times the model's own integration error (little noise, or a low
@@ -195,7 +252,7 @@ impl Default for DiagnoseOptions {
 /// candidate would explain but the model's error covers is `none`
 /// ([`Diagnosis::none_by_model_error`]), without more substeps: below that threshold the rules
 /// name an effect only on a candidate's explanation, which the model's error makes unsure.
-pub fn diagnose(
+pub fn diagnose_displacement(
     params: &actuator_params::ActuatorParams,
     measurements: &[Measurement],
     documented: Option<&DatasetInfo>,
@@ -318,7 +375,7 @@ fn diagnose_at(
     };
     // Steps 6-7: the single candidates.
     let (mut ranked, mut singles_tie) =
-        singles::fit_library(&stage, &refit, &common_start, progress);
+        singles::fit_library(&stage, &refit, &common_start, &options.library, progress);
     progress(1);
     let mut winner = ranked.iter().position(|r| r.0.significant);
     // Step 8: a second effect.
@@ -439,12 +496,13 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
             .chain(additional_effects.iter().map(String::as_str))
             .collect::<Vec<_>>(),
     );
+    let coil_current_measured = options.measured_current_input;
     let graded = grade::grade(
         &name,
         &additional_effects,
         &ranked.iter().map(|r| r.0.clone()).collect::<Vec<_>>(),
-        rec.noise_m,
-        rec.range_m,
+        (rec.noise_m, rec.range_m),
+        coil_current_measured,
     );
     if let Some(p) = &graded.partly {
         reason = format!(
@@ -475,6 +533,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         resonance_hz: params.actuator.resonance_hz,
         current_limit_a: params.control.current_limit_a,
         sample_rate_hz: rec.rate_hz,
+        coil_current_measured,
     };
     let advice = {
         let named: Vec<String> = std::iter::once(name.clone())
@@ -546,6 +605,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
                 .collect(),
             unmeasured_loops,
             unmeasured_loops_warning,
+            coil_current: None,
             refitted_nominal: refit_result,
             nuisance: rec.nuisance,
             experiments: rec.infos,

@@ -126,8 +126,14 @@ pub fn analyse(
         &infos,
         &documented_starts,
     );
+    let interpolations: &[CurrentBetweenSamples] = if options.measured_current_input {
+        &[CurrentBetweenSamples::Linear]
+    } else {
+        &[CurrentBetweenSamples::Linear, CurrentBetweenSamples::Hold]
+    };
     let estimate = estimate_nuisances(
         &setup_for(CurrentBetweenSamples::Linear),
+        interpolations,
         measurements,
         &settles,
         &dynamic,
@@ -330,13 +336,20 @@ fn nuisance_report(
     sensor_offset_m: f64,
     infos: &[ExperimentInfo],
 ) -> Nuisance {
-    let mut estimated = vec![
+    let between = if estimate.rms_hold.is_finite() {
         format!(
             "current between samples: {} (RMS residual {:.3e} m held, {:.3e} m linear)",
             estimate.interpolation.name(),
             estimate.rms_hold,
             estimate.rms_linear
-        ),
+        )
+    } else {
+        "current between samples: linear (the measured coil current, a sampled continuous \
+         signal)"
+            .to_string()
+    };
+    let mut estimated = vec![
+        between,
         format!(
             "channel skew: {:+.3} samples (displacement read after the current sample when positive)",
             estimate.skew

@@ -182,6 +182,9 @@ pub struct Diagnosis {
     /// The warning for them, repeated next to the verdict (`None`: every loop measured, or a
     /// file that does not record where its masses were measured).
     pub unmeasured_loops_warning: Option<String>,
+    /// What the coil-current channel said of the amplifier, when the dataset records it
+    /// ([`super::coil_current`]); then every candidate below was fitted on the measured current.
+    pub coil_current: Option<super::coil_current::AmplifierJudgement>,
     /// The refitted nominal model (step 6).
     pub refitted_nominal: CandidateResult,
     /// The nuisances (step 2).

@@ -86,12 +86,13 @@ pub fn refit_nominal(fitter: &PlanFitter<'_>, common_start: &[f64]) -> PlanFit {
     fitter.fit(&Candidate::nominal(), &[common_start.to_vec()])
 }
 
-/// Every library effect fitted on top of the nominal model, scored and ranked best first on the
+/// Every effect of `library` fitted on top of the nominal model, scored and ranked best first on the
 /// held-out experiments (steps 6 and 7); the tie the best significant one was in, if any.
 pub fn fit_library(
     stage: &Stage<'_>,
     refit: &PlanFit,
     common_start: &[f64],
+    library: &[EffectName],
     progress: &(dyn Fn(u64) + Sync),
 ) -> (Vec<Ranked>, Option<HeldOutTie>) {
     // Each effect starts from the refitted constants and from the file's (the refitted ones may
@@ -100,7 +101,7 @@ pub fn fit_library(
         refit.fitted.values[..COMMON_PARAMETER_COUNT].to_vec(),
         common_start.to_vec(),
     ];
-    let fitted: Vec<PlanFit> = EffectName::LIBRARY
+    let fitted: Vec<PlanFit> = library
         .par_iter()
         .map(|&effect| {
             let starts: Vec<Vec<f64>> = candidates::effect_starts(effect, stage.nominal)

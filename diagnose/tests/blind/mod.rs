@@ -36,6 +36,7 @@ pub fn run_case(
             t_s: r.t_s.clone(),
             current_a: r.current_a.clone(),
             displacement_m: r.displacement_m.clone(),
+            coil_current_a: r.coil_current_a.clone(),
             step_s: 1.0 / rate,
         })
         .collect();
@@ -210,6 +211,19 @@ pub fn forms_from_env() -> suite::Forms {
     suite::Forms::from_env("BLIND_FORMS").unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// `case` with the coil-current channel recorded when `BLIND_COIL_CURRENT=measured` asks for
+/// it (`maglab_plant::CurrentMonitor::TYPICAL`: 1 mA of noise in 1 mA steps; `off`, the
+/// default: the commanded current only). The draws are the same either way: the channel's
+/// noise has a stream of its own.
+pub fn with_coil_current_from_env(mut case: Case) -> Case {
+    match std::env::var("BLIND_COIL_CURRENT").as_deref() {
+        Err(_) | Ok("") | Ok("off") => {}
+        Ok("measured") => case.settings.coil_current = Some(maglab_plant::CurrentMonitor::TYPICAL),
+        Ok(other) => panic!("BLIND_COIL_CURRENT `{other}`: expected `measured` or `off`"),
+    }
+    case
+}
+
 /// The rod of case `i` in the rod mode (`BLIND_RODS=families`): the four families in turn, their
 /// planes 1× to 5× the coil's reach (`maglab_plant::rods`), default coercivity and spread.
 pub fn rod_of_case(i: usize) -> maglab_plant::Rod {
@@ -315,6 +329,7 @@ pub fn run_suite(seed: u64, count: usize, verbose: bool) -> Vec<Outcome> {
                     forms,
                 )
                 .expect("the case is drawn");
+                let case = with_coil_current_from_env(case);
                 // Each case's rod is identified on the loops the case runs (one file per case).
                 let nominal = match &rod {
                     None => params.clone(),

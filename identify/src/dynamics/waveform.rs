@@ -119,6 +119,9 @@ pub struct IdentificationOptions {
     /// them in the fit), which leaves a diagnosis nothing to find. The band above is what
     /// `maglab diagnose` holds out. 1 fits everything.
     pub fit_band_fraction: f64,
+    /// The measurements' current is the measured coil current: read linear between samples
+    /// (`maglab_model::coil_current`), never held.
+    pub measured_current_input: bool,
 }
 
 /// Default [`IdentificationOptions::fit_band_fraction`]: up to a little over half the highest
@@ -135,6 +138,7 @@ impl Default for IdentificationOptions {
                 ..FitSettings::default()
             },
             fit_band_fraction: FIT_BAND_FRACTION,
+            measured_current_input: false,
         }
     }
 }
@@ -213,6 +217,11 @@ pub fn identify_dynamics(
         settles,
         fitted_set,
         settings: &options.fit,
+        interpolations: if options.measured_current_input {
+            &[CurrentBetweenSamples::Linear]
+        } else {
+            &[CurrentBetweenSamples::Linear, CurrentBetweenSamples::Hold]
+        },
     };
     let first_starts: Vec<[f64; 3]> = std::iter::once(base)
         .chain(starts.iter().copied())
@@ -347,6 +356,8 @@ struct Passes<'a> {
     probe_lens: Vec<usize>,
     fitted_set: Vec<usize>,
     settings: &'a FitSettings,
+    /// The current between samples the nuisance estimate may choose.
+    interpolations: &'a [CurrentBetweenSamples],
 }
 
 /// One pass's result.
@@ -379,6 +390,7 @@ impl Passes<'_> {
             ..
         } = estimate_nuisances(
             &self.linear,
+            self.interpolations,
             self.measurements,
             &self.settles,
             &self.fitted_set,

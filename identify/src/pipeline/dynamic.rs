@@ -38,7 +38,7 @@ impl DynamicStage<'_> {
                 o.simulation.max_substep_s, o.resistivity_ohm_m
             )));
         }
-        let mut fit = fit_eddy_and_damping(&self.dataset.split.dynamic, params, o, self.progress)
+        let mut fit = fit_eddy_and_damping(self.dataset.dynamic_input(), params, o, self.progress)
             .map_err(|e| IdentifyError::step("phase-lag scheme", e))?;
         if self.options.waveform_fit {
             self.refine(&mut fit, params, also_from)?;
@@ -56,8 +56,9 @@ impl DynamicStage<'_> {
         let split = &self.dataset.split;
         // Recording order (file-name order): an experiment recorded without a reset continues
         // the one before it. The split sorts the dynamic experiments by frequency.
-        let mut measurements: Vec<Measurement> = split
-            .dynamic
+        let mut measurements: Vec<Measurement> = self
+            .dataset
+            .dynamic_input()
             .iter()
             .map(|d| d.measurement.clone())
             .collect();
@@ -76,6 +77,7 @@ impl DynamicStage<'_> {
             &starts,
             &IdentificationOptions {
                 substeps: self.options.substeps,
+                measured_current_input: self.dataset.measured_current_input(),
                 ..IdentificationOptions::default()
             },
         )

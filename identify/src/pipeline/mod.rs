@@ -24,11 +24,13 @@ pub mod passes;
 pub mod reversible;
 
 use crate::dynamics::{DynamicFit, DynamicOptions, Progress};
-use crate::experiments::{load_split_dataset, ClassifyOptions, SplitDataset};
+use crate::experiments::{load_split_dataset, ClassifyOptions, DynamicExperiment, SplitDataset};
 use crate::masses::{identify_masses, MassIdentification, MassOptions};
 use actuator_params::{ActuatorParams, ParamsError};
+use maglab_dataset::data::Measurement;
 use maglab_dataset::dataset_info::DatasetInfo;
 use maglab_dataset::DataError;
+use maglab_model::coil_current::{self, AmplifierJudgement};
 use std::fmt;
 use std::path::Path;
 
@@ -39,20 +41,103 @@ pub use reversible::{ReversibleChoice, ReversiblePart};
 /// dynamic experiments, and the folder's `dataset.json` when it has one.
 #[derive(Debug, Clone)]
 pub struct RecordedDataset {
-    /// The experiments.
+    /// The experiments as recorded (`current_a` the command): their classification, the reach,
+    /// the masses and the checks go by what the bench drove.
     pub split: SplitDataset,
     /// What the bench documented.
     pub documented: Option<DatasetInfo>,
+    /// The amplifier judged on the commanded against the measured current, when the dataset
+    /// records it (`None`: the commanded current is the model's input).
+    pub amplifier: Option<AmplifierJudgement>,
+    /// With the coil current recorded, the dynamic experiments with the measured current as
+    /// their `current_a` (`maglab_model::coil_current::with_measured_current`): the dynamic
+    /// model's input, so that the rod is identified from the current in its coil, whatever the
+    /// amplifier made of the command.
+    dynamic_on_measured_current: Option<Vec<DynamicExperiment>>,
 }
 
 impl RecordedDataset {
     /// Reads the folder `dir` (errors name the file, line, column or field).
     pub fn load(dir: &Path, classify: &ClassifyOptions) -> Result<Self, DataError> {
+        let split = load_split_dataset(dir, classify)?;
+        let (amplifier, dynamic_on_measured_current) = match on_measured_current(&split)? {
+            Some((a, d)) => (Some(a), Some(d)),
+            None => (None, None),
+        };
         Ok(RecordedDataset {
             documented: DatasetInfo::load(dir)?,
-            split: load_split_dataset(dir, classify)?,
+            split,
+            amplifier,
+            dynamic_on_measured_current,
         })
     }
+
+    /// Whether the dynamic model's input is the measured coil current.
+    pub fn measured_current_input(&self) -> bool {
+        self.dynamic_on_measured_current.is_some()
+    }
+
+    /// The dynamic experiments as the dynamic model takes them: with the measured coil current
+    /// when the dataset records it, else as recorded.
+    pub fn dynamic_input(&self) -> &[DynamicExperiment] {
+        self.dynamic_on_measured_current
+            .as_deref()
+            .unwrap_or(&self.split.dynamic)
+    }
+}
+
+/// With the coil current recorded in every file: the amplifier judged on the command against
+/// it, and the dynamic experiments with the measured current as their current (the
+/// quasi-static ones keep the command: `maglab_model::coil_current::with_measured_current` says
+/// why). A dataset with the column in some files only is an error naming the first file that
+/// differs.
+#[allow(clippy::type_complexity)]
+fn on_measured_current(
+    split: &SplitDataset,
+) -> Result<Option<(AmplifierJudgement, Vec<DynamicExperiment>)>, DataError> {
+    let all: Vec<&Measurement> = split
+        .quasi_static
+        .iter()
+        .chain(split.dynamic.iter().map(|d| &d.measurement))
+        .collect();
+    let Some(first) = all.first() else {
+        return Ok(None);
+    };
+    let has = |m: &Measurement| m.coil_current_a.is_some();
+    if let Some(other) = all.iter().find(|m| has(m) != has(first)) {
+        let (with, without) = if has(first) {
+            (*first, *other)
+        } else {
+            (*other, *first)
+        };
+        return Err(DataError::at(
+            &without.path,
+            1,
+            Some(maglab_dataset::data::COIL_CURRENT_COLUMN),
+            format!(
+                "no `{}` column, but {} has one: in a dataset every file records the coil \
+                 current or none does",
+                maglab_dataset::data::COIL_CURRENT_COLUMN,
+                with.path.display()
+            ),
+        ));
+    }
+    let owned: Vec<Measurement> = all.into_iter().cloned().collect();
+    let Some(judgement) = coil_current::judge(&owned) else {
+        return Ok(None);
+    };
+    let dynamic = split
+        .dynamic
+        .iter()
+        .map(|d| {
+            let mut d = d.clone();
+            if let Some(c) = &d.measurement.coil_current_a {
+                d.measurement.current_a = coil_current::interval_means_preserved(c);
+            }
+            d
+        })
+        .collect();
+    Ok(Some((judgement, dynamic)))
 }
 
 /// The base parameter file: the grid, the constants the data do not give, the prior masses and
@@ -167,6 +252,9 @@ impl IdentifyError {
     }
 }
 
+/// The provenance entry of the amplifier judged on the coil-current channel.
+pub const AMPLIFIER_KEY: &str = "coil_current";
+
 /// Identifies `dataset` from `base` (see the module docs); `progress` reports the phase-lag
 /// scheme's grid (called from worker threads).
 pub fn identify(
@@ -242,6 +330,16 @@ pub fn identify(
             .provenance
             .details
             .insert(reversible::PROVENANCE_KEY.into(), choice.provenance());
+    }
+    if let Some(amplifier) = &dataset.amplifier {
+        params.provenance.details.insert(
+            AMPLIFIER_KEY.into(),
+            serde_json::json!({
+                "input": "the measured coil current (coil_current_a): the rod was identified from \
+                          the current in its coil, the amplifier from the command against it",
+                "judgement": amplifier,
+            }),
+        );
     }
     if let Some(measured) = crate::coverage::measured_loops(&quasi_static, &split.dynamic) {
         params.provenance.details.insert(

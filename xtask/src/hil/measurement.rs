@@ -157,7 +157,7 @@ pub(super) fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path)
             y.push(c.desired_m as f64);
         }
         let file = format!("{name}.csv");
-        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y)
+        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y, None)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         info.files.insert(
             file,
