@@ -13,8 +13,14 @@
 
 /// First byte of every frame.
 pub const SYNC: u8 = 0xA5;
-/// Bytes of a sample frame (plant → firmware).
+/// Bytes of a sample frame without the coil current (plant → firmware), of a programme frame
+/// and of the end acknowledgement (bench host → firmware).
 pub const SAMPLE_FRAME_BYTES: usize = 8;
+/// Bytes of a sample frame with the coil current ([`KIND_SAMPLE_COUNT_CURRENT`],
+/// [`KIND_SAMPLE_METRES_CURRENT`]).
+pub const SAMPLE_CURRENT_FRAME_BYTES: usize = 12;
+/// The longest frame the firmware receives.
+pub const MAX_RECEIVED_FRAME_BYTES: usize = SAMPLE_CURRENT_FRAME_BYTES;
 /// Bytes of a command frame (firmware → plant).
 pub const COMMAND_FRAME_BYTES: usize = 16;
 
@@ -23,6 +29,12 @@ pub const KIND_SAMPLE_COUNT: u8 = b'S';
 /// Sample-frame kind: the payload is the displacement in metres (`f32`), for a digital sensor
 /// (checked against the valid range like a scaled count; NaN or ±∞ is a sensor fault).
 pub const KIND_SAMPLE_METRES: u8 = b'M';
+/// Sample-frame kind (link version 2): the ADC count (`u32`) and the coil current the amplifier's
+/// current monitor read on the same trigger (`f32`, A).
+pub const KIND_SAMPLE_COUNT_CURRENT: u8 = b'T';
+/// Sample-frame kind (link version 2): the displacement in metres (`f32`) and the coil current
+/// (`f32`, A).
+pub const KIND_SAMPLE_METRES_CURRENT: u8 = b'U';
 /// Programme-frame kind (bench host → firmware, measurement mode): the current to play this tick,
 /// `f32` A. Sent by the bench host (`cargo xtask hil --measure`) before each sample frame, never
 /// by a plant.
@@ -56,6 +68,36 @@ pub struct SampleFrame {
     pub seq: u16,
     /// The reading.
     pub sample: Sample,
+    /// The coil current the current monitor read on the same trigger, A (link version 2's
+    /// `T`/`U` frames; `None` for `S`/`M`).
+    pub coil_current_a: Option<f32>,
+}
+
+/// A received frame: its bytes and how many of them it has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RawFrame {
+    bytes: [u8; MAX_RECEIVED_FRAME_BYTES],
+    len: usize,
+}
+
+impl RawFrame {
+    /// The frame's bytes.
+    pub fn as_slice(&self) -> &[u8] {
+        &self.bytes[..self.len]
+    }
+}
+
+/// The length of a received frame of kind `kind` (firmware's side): 12 bytes for the sample
+/// frames with the coil current, 8 for every other kind the firmware understands, and 2 (the
+/// sync and kind bytes alone) for a kind it does not, so that the decoder reports it at once.
+pub fn received_frame_bytes(kind: u8) -> usize {
+    match kind {
+        KIND_SAMPLE_COUNT_CURRENT | KIND_SAMPLE_METRES_CURRENT => SAMPLE_CURRENT_FRAME_BYTES,
+        KIND_SAMPLE_COUNT | KIND_SAMPLE_METRES | KIND_PROGRAMME | KIND_END_ACK => {
+            SAMPLE_FRAME_BYTES
+        }
+        _ => 2,
+    }
 }
 
 /// Why a received frame was rejected.
@@ -75,30 +117,63 @@ pub enum FrameError {
 }
 
 impl SampleFrame {
-    /// Encodes the frame (the plant's side).
-    pub fn encode(&self) -> [u8; SAMPLE_FRAME_BYTES] {
-        let (kind, payload) = match self.sample {
-            Sample::Count(c) => (KIND_SAMPLE_COUNT, c.to_le_bytes()),
-            Sample::Metres(m) => (KIND_SAMPLE_METRES, m.to_le_bytes()),
+    /// Encodes the frame (the plant's side): 8 bytes (`S`, `M`) or, with the coil current,
+    /// 12 (`T`, `U`).
+    pub fn encode(&self) -> RawFrame {
+        let (kind, payload) = match (self.sample, self.coil_current_a) {
+            (Sample::Count(c), None) => (KIND_SAMPLE_COUNT, c.to_le_bytes()),
+            (Sample::Metres(m), None) => (KIND_SAMPLE_METRES, m.to_le_bytes()),
+            (Sample::Count(c), Some(_)) => (KIND_SAMPLE_COUNT_CURRENT, c.to_le_bytes()),
+            (Sample::Metres(m), Some(_)) => (KIND_SAMPLE_METRES_CURRENT, m.to_le_bytes()),
         };
         let s = self.seq.to_le_bytes();
-        [
-            SYNC, kind, s[0], s[1], payload[0], payload[1], payload[2], payload[3],
-        ]
+        let i = self.coil_current_a.unwrap_or(0.0).to_le_bytes();
+        RawFrame {
+            bytes: [
+                SYNC, kind, s[0], s[1], payload[0], payload[1], payload[2], payload[3], i[0], i[1],
+                i[2], i[3],
+            ],
+            len: received_frame_bytes(kind),
+        }
     }
 
     /// Decodes a frame and checks its sequence number against `expected_seq` (the firmware's
-    /// side).
-    pub fn decode(b: &[u8; SAMPLE_FRAME_BYTES], expected_seq: u16) -> Result<Self, FrameError> {
-        if b[0] != SYNC {
-            return Err(FrameError::Sync(b[0]));
+    /// side); a frame shorter than its kind's length is a kind error.
+    pub fn decode(b: &[u8], expected_seq: u16) -> Result<Self, FrameError> {
+        let (&sync, &kind) = match b {
+            [sync, kind, ..] => (sync, kind),
+            [sync] => return Err(FrameError::Sync(*sync)),
+            [] => return Err(FrameError::Sync(0)),
+        };
+        if sync != SYNC {
+            return Err(FrameError::Sync(sync));
         }
-        let seq = u16::from_le_bytes([b[2], b[3]]);
-        let payload = [b[4], b[5], b[6], b[7]];
-        let sample = match b[1] {
-            KIND_SAMPLE_COUNT => Sample::Count(u32::from_le_bytes(payload)),
-            KIND_SAMPLE_METRES => Sample::Metres(f32::from_le_bytes(payload)),
+        let with_current = matches!(kind, KIND_SAMPLE_COUNT_CURRENT | KIND_SAMPLE_METRES_CURRENT);
+        let word = |at: usize| -> Option<[u8; 4]> {
+            Some([
+                *b.get(at)?,
+                *b.get(at + 1)?,
+                *b.get(at + 2)?,
+                *b.get(at + 3)?,
+            ])
+        };
+        let (Some(seq), Some(payload)) = (b.get(2..4), word(4)) else {
+            return Err(FrameError::Kind(kind));
+        };
+        let seq = u16::from_le_bytes([seq[0], seq[1]]);
+        let sample = match kind {
+            KIND_SAMPLE_COUNT | KIND_SAMPLE_COUNT_CURRENT => {
+                Sample::Count(u32::from_le_bytes(payload))
+            }
+            KIND_SAMPLE_METRES | KIND_SAMPLE_METRES_CURRENT => {
+                Sample::Metres(f32::from_le_bytes(payload))
+            }
             k => return Err(FrameError::Kind(k)),
+        };
+        let coil_current_a = match (with_current, word(8)) {
+            (false, _) => None,
+            (true, Some(i)) => Some(f32::from_le_bytes(i)),
+            (true, None) => return Err(FrameError::Kind(kind)),
         };
         if seq != expected_seq {
             return Err(FrameError::Sequence {
@@ -106,7 +181,11 @@ impl SampleFrame {
                 got: seq,
             });
         }
-        Ok(SampleFrame { seq, sample })
+        Ok(SampleFrame {
+            seq,
+            sample,
+            coil_current_a,
+        })
     }
 }
 
@@ -129,13 +208,16 @@ impl ProgrammeFrame {
     }
 
     /// Decodes a frame and checks its sequence number (the firmware's side).
-    pub fn decode(b: &[u8; SAMPLE_FRAME_BYTES], expected_seq: u16) -> Result<Self, FrameError> {
-        if b[0] != SYNC {
-            return Err(FrameError::Sync(b[0]));
-        }
-        if b[1] != KIND_PROGRAMME {
-            return Err(FrameError::Kind(b[1]));
-        }
+    pub fn decode(b: &[u8], expected_seq: u16) -> Result<Self, FrameError> {
+        let b: &[u8; SAMPLE_FRAME_BYTES] = match b {
+            [SYNC, KIND_PROGRAMME, ..] => b
+                .get(..SAMPLE_FRAME_BYTES)
+                .and_then(|b| b.try_into().ok())
+                .ok_or(FrameError::Kind(KIND_PROGRAMME))?,
+            [SYNC, kind, ..] => return Err(FrameError::Kind(*kind)),
+            [other, ..] => return Err(FrameError::Sync(*other)),
+            [] => return Err(FrameError::Sync(0)),
+        };
         let seq = u16::from_le_bytes([b[2], b[3]]);
         if seq != expected_seq {
             return Err(FrameError::Sequence {
@@ -221,11 +303,12 @@ impl CommandFrame {
     }
 }
 
-/// Assembles sample frames from a byte stream, one byte at a time (the firmware feeds it the
-/// UART's received bytes; it never blocks and never allocates).
+/// Assembles received frames from a byte stream, one byte at a time (the firmware feeds it the
+/// UART's received bytes; it never blocks and never allocates). The kind byte says how long
+/// the frame is ([`received_frame_bytes`]).
 #[derive(Debug, Clone, Default)]
 pub struct SampleAssembler {
-    buf: [u8; SAMPLE_FRAME_BYTES],
+    buf: [u8; MAX_RECEIVED_FRAME_BYTES],
     len: usize,
 }
 
@@ -233,28 +316,32 @@ impl SampleAssembler {
     /// An empty assembler.
     pub const fn new() -> Self {
         SampleAssembler {
-            buf: [0; SAMPLE_FRAME_BYTES],
+            buf: [0; MAX_RECEIVED_FRAME_BYTES],
             len: 0,
         }
     }
 
     /// Adds a byte; returns the whole frame when this byte completed one. A first byte other
-    /// than [`SYNC`] is returned at once as a one-byte frame so that the decoder reports the
-    /// desynchronized link instead of waiting for more bytes.
-    pub fn push(&mut self, byte: u8) -> Option<[u8; SAMPLE_FRAME_BYTES]> {
+    /// than [`SYNC`] is returned at once as a one-byte frame, and a kind the firmware does not
+    /// know as a two-byte one, so that the decoder reports the desynchronized link instead of
+    /// waiting for more bytes.
+    pub fn push(&mut self, byte: u8) -> Option<RawFrame> {
         if let Some(slot) = self.buf.get_mut(self.len) {
             *slot = byte;
         }
         self.len += 1;
-        if self.len == 1 && byte != SYNC {
+        let wanted = match self.len {
+            1 if byte != SYNC => 1,
+            1 => return None,
+            _ => received_frame_bytes(self.buf[1]),
+        };
+        if self.len >= wanted {
+            let frame = RawFrame {
+                bytes: self.buf,
+                len: self.len.min(MAX_RECEIVED_FRAME_BYTES),
+            };
             self.len = 0;
-            let mut bad = [0u8; SAMPLE_FRAME_BYTES];
-            bad[0] = byte;
-            return Some(bad);
-        }
-        if self.len >= SAMPLE_FRAME_BYTES {
-            self.len = 0;
-            return Some(self.buf);
+            return Some(frame);
         }
         None
     }
@@ -333,14 +420,19 @@ mod tests {
             Sample::Metres(2.5e-5),
             Sample::Metres(-0.0),
         ] {
-            let f = SampleFrame { seq: 513, sample };
-            assert_eq!(SampleFrame::decode(&f.encode(), 513), Ok(f));
+            let f = SampleFrame {
+                seq: 513,
+                sample,
+                coil_current_a: None,
+            };
+            assert_eq!(SampleFrame::decode(f.encode().as_slice(), 513), Ok(f));
         }
         let nan = SampleFrame {
             seq: 7,
             sample: Sample::Metres(f32::NAN),
+            coil_current_a: None,
         };
-        match SampleFrame::decode(&nan.encode(), 7) {
+        match SampleFrame::decode(nan.encode().as_slice(), 7) {
             Ok(SampleFrame {
                 sample: Sample::Metres(m),
                 ..
@@ -359,22 +451,23 @@ mod tests {
         let f = SampleFrame {
             seq: 9,
             sample: Sample::Count(1),
+            coil_current_a: None,
         };
         assert_eq!(
-            ProgrammeFrame::decode(&f.encode(), 9),
+            ProgrammeFrame::decode(f.encode().as_slice(), 9),
             Err(FrameError::Kind(KIND_SAMPLE_COUNT))
         );
         assert_eq!(
-            SampleFrame::decode(&f.encode(), 10),
+            SampleFrame::decode(f.encode().as_slice(), 10),
             Err(FrameError::Sequence {
                 expected: 10,
                 got: 9
             })
         );
-        let mut b = f.encode();
+        let mut b = f.encode().as_slice().to_vec();
         b[0] = 0x5A;
         assert_eq!(SampleFrame::decode(&b, 9), Err(FrameError::Sync(0x5A)));
-        let mut b = f.encode();
+        let mut b = f.encode().as_slice().to_vec();
         b[1] = b'Z';
         assert_eq!(SampleFrame::decode(&b, 9), Err(FrameError::Kind(b'Z')));
 
@@ -416,27 +509,51 @@ mod tests {
     }
 
     #[test]
-    fn the_assembler_cuts_frames_and_reports_a_lost_sync_at_once() {
+    fn the_assembler_cuts_frames_of_either_length_and_reports_a_lost_sync_or_kind_at_once() {
         let mut a = SampleAssembler::new();
-        let f = SampleFrame {
-            seq: 1,
-            sample: Sample::Count(77),
+        for coil_current_a in [None, Some(0.8125)] {
+            let f = SampleFrame {
+                seq: 1,
+                sample: Sample::Count(77),
+                coil_current_a,
+            };
+            let bytes = f.encode();
+            let len = bytes.as_slice().len();
+            assert_eq!(len, if coil_current_a.is_some() { 12 } else { 8 });
+            let mut got = None;
+            for (i, &byte) in bytes.as_slice().iter().enumerate() {
+                got = a.push(byte);
+                assert_eq!(got.is_some(), i == len - 1);
+            }
+            let got = got.expect("a whole frame");
+            assert_eq!(got.as_slice(), bytes.as_slice());
+            assert_eq!(SampleFrame::decode(got.as_slice(), 1), Ok(f));
+            assert_eq!(a.pending(), 0);
         }
-        .encode();
-        let mut got = None;
-        for (i, &byte) in f.iter().enumerate() {
-            got = a.push(byte);
-            assert_eq!(got.is_some(), i == SAMPLE_FRAME_BYTES - 1);
-        }
-        assert_eq!(got, Some(f));
-        assert_eq!(a.pending(), 0);
         let bad = a
             .push(0x00)
             .expect("a wrong first byte is reported at once");
         assert_eq!(
-            SampleFrame::decode(&bad, 2),
+            SampleFrame::decode(bad.as_slice(), 2),
             Err(FrameError::Sync(0x00)),
             "decoded as a sync error"
+        );
+        assert!(a.push(SYNC).is_none());
+        let unknown = a.push(b'Q').expect("an unknown kind is reported at once");
+        assert_eq!(
+            SampleFrame::decode(unknown.as_slice(), 2),
+            Err(FrameError::Kind(b'Q'))
+        );
+        // A frame of version 2 cut short is no frame.
+        let cut = &SampleFrame {
+            seq: 3,
+            sample: Sample::Metres(1e-5),
+            coil_current_a: Some(1.0),
+        }
+        .encode();
+        assert_eq!(
+            SampleFrame::decode(&cut.as_slice()[..8], 3),
+            Err(FrameError::Kind(KIND_SAMPLE_METRES_CURRENT))
         );
     }
 
@@ -462,10 +579,12 @@ mod tests {
         let sample = SampleFrame {
             seq: 1002,
             sample: Sample::Count(1286),
+            coil_current_a: None,
         }
         .encode();
+        let sample = sample.as_slice();
         let stray = [SYNC, SYNC, KIND_END_ACK];
-        for &b in sample[1..].iter().chain(&sample).chain(&stray) {
+        for &b in sample[1..].iter().chain(sample).chain(&stray) {
             assert!(!w.push(b));
         }
         assert_eq!(bytes.iter().filter(|&&b| w.push(b)).count(), 1);

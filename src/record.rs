@@ -13,9 +13,10 @@
 //! the programme at 0 A, and the host reports the ticks that are missing — a record is complete
 //! or it is refused, never silently thinned.
 //!
-//! Wire format of one batch (little endian): `SAMPLE_BYTES` = 9 bytes per tick, ticks
+//! Wire format of one batch (little endian): `SAMPLE_BYTES` = 13 bytes per tick, ticks
 //! consecutive from the line's first tick: current applied (f32, A), reading (f32, m; NaN after a
-//! sensor fault), flags (u8, [`crate::inverse::CommandFlags`]).
+//! sensor fault), flags (u8, [`crate::inverse::CommandFlags`]), the coil current the amplifier's
+//! current monitor read on the same trigger (f32, A; NaN where the bench has no monitor).
 
 use crate::inverse::{ControlLoop, LoopState, TickOutput};
 use crate::programme::{IdentificationProgramme, ProgrammeState};
@@ -24,10 +25,10 @@ use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 /// Bytes per recorded tick.
-pub const SAMPLE_BYTES: usize = 9;
-/// Ticks per batch: one defmt frame of 9·20 = 180 payload bytes plus ≤ 9 of header, ≤ 216 bytes
-/// after rzCOBS framing (worst case +1/7): fits the QEMU logger's 256-byte frame buffer.
-pub const BATCH_SAMPLES: usize = 20;
+pub const SAMPLE_BYTES: usize = 13;
+/// Ticks per batch: one defmt frame of 13·14 = 182 payload bytes plus ≤ 9 of header, ≤ 219
+/// bytes after rzCOBS framing (worst case +1/7): fits the QEMU logger's 256-byte frame buffer.
+pub const BATCH_SAMPLES: usize = 14;
 /// Capacity of the interrupt → thread-mode queue, ticks (51 ms at 10 kHz); a power of two.
 pub const QUEUE_SAMPLES: usize = 512;
 const _: () = assert!(QUEUE_SAMPLES.is_power_of_two() && QUEUE_SAMPLES <= 1 << 16);
@@ -45,6 +46,8 @@ pub struct MeasuredSample {
     pub reading_m: f32,
     /// Command flags.
     pub flags: u8,
+    /// The coil current read on the same trigger, A (NaN: the bench has no current monitor).
+    pub coil_current_a: f32,
 }
 
 const EMPTY: MeasuredSample = MeasuredSample {
@@ -53,6 +56,7 @@ const EMPTY: MeasuredSample = MeasuredSample {
     current_a: 0.0,
     reading_m: 0.0,
     flags: 0,
+    coil_current_a: f32::NAN,
 };
 
 /// The interrupt → thread-mode queue of recorded ticks: a ring of [`QUEUE_SAMPLES`] slots,
@@ -202,7 +206,8 @@ impl RecordBatch {
         let at = self.len * SAMPLE_BYTES;
         let [c0, c1, c2, c3] = s.current_a.to_le_bytes();
         let [r0, r1, r2, r3] = s.reading_m.to_le_bytes();
-        let encoded = [c0, c1, c2, c3, r0, r1, r2, r3, s.flags];
+        let [i0, i1, i2, i3] = s.coil_current_a.to_le_bytes();
+        let encoded = [c0, c1, c2, c3, r0, r1, r2, r3, s.flags, i0, i1, i2, i3];
         match self.bytes.get_mut(at..at + SAMPLE_BYTES) {
             Some(slot) => {
                 // Element by element: no length check the optimizer must remove (no-panic proof).
@@ -270,8 +275,9 @@ impl<'q> Recorder<'q> {
     }
 
     /// One control tick: the programme's next current through
-    /// [`ControlLoop::measure_sensed`] (limiter, sensor-fault latch), the recorded tick into the
-    /// queue. After the programme's last tick, a full queue (the host is not draining the
+    /// [`ControlLoop::measure_sensed`] (limiter, sensor-fault latch), the recorded tick (with
+    /// `coil_current_a`, the current monitor's reading of the tick, when the bench has one) into
+    /// the queue. After the programme's last tick, a full queue (the host is not draining the
     /// record: the tick is lost, counted, and the programme ends) or a sensor fault, the coil
     /// ramps to 0 A at the slew limit and stays there. Never waits; ~60 instructions beside the
     /// programme and the limiter.
@@ -281,6 +287,7 @@ impl<'q> Recorder<'q> {
         control: &ControlLoop<'_>,
         loop_state: &mut LoopState<N>,
         reading: Result<f32, SensorFault>,
+        coil_current_a: Option<f32>,
     ) -> TickOutput {
         let step = if self.ended {
             None
@@ -299,6 +306,7 @@ impl<'q> Recorder<'q> {
                 current_a: out.current_a,
                 reading_m: out.desired.displacement_m,
                 flags: out.flags.0,
+                coil_current_a: coil_current_a.unwrap_or(f32::NAN),
             };
             if self.producer.enqueue(record).is_err() {
                 self.lost = self.lost.saturating_add(1);
@@ -396,6 +404,7 @@ pub fn decode_batch(
             current_a: f32::from_le_bytes([c[0], c[1], c[2], c[3]]),
             reading_m: f32::from_le_bytes([c[4], c[5], c[6], c[7]]),
             flags: c[8],
+            coil_current_a: f32::from_le_bytes([c[9], c[10], c[11], c[12]]),
         }))
 }
 
@@ -466,6 +475,11 @@ mod tests {
                 tick as f32 * 1e-6
             },
             flags: (tick % 256) as u8,
+            coil_current_a: if tick % 3 == 0 {
+                f32::NAN
+            } else {
+                tick as f32 * 0.01
+            },
         }
     }
 
@@ -487,6 +501,7 @@ mod tests {
             assert_eq!(s.current_a.to_bits(), want.current_a.to_bits());
             assert_eq!(s.reading_m.to_bits(), want.reading_m.to_bits());
             assert_eq!(s.flags, want.flags);
+            assert_eq!(s.coil_current_a.to_bits(), want.coil_current_a.to_bits());
         }
         b.clear();
         assert!(b.is_empty() && b.bytes().is_empty());
@@ -531,7 +546,12 @@ mod tests {
         let mut ticks = 0u32;
         while !recorder.ended() {
             // A reading that depends on the tick, so that order mistakes show.
-            let out = recorder.tick(&control, &mut state, Ok(ticks as f32 * 1e-9));
+            let out = recorder.tick(
+                &control,
+                &mut state,
+                Ok(ticks as f32 * 1e-9),
+                Some(ticks as f32 * 1e-3),
+            );
             assert!(out.current_a.abs() <= control.limiter().limit_a());
             ticks += 1;
             // Thread mode drains every few ticks.
@@ -588,7 +608,7 @@ mod tests {
         let mut recorder = Recorder::new(programme, producer);
         let mut last = 1.0f32;
         for _ in 0..20_000 {
-            last = recorder.tick(&control, &mut state, Ok(0.0)).current_a;
+            last = recorder.tick(&control, &mut state, Ok(0.0), None).current_a;
         }
         assert!(recorder.ended());
         assert_eq!(

@@ -10,6 +10,10 @@
 //! plus white noise, quantized to the ADC count of the parameter
 //! file's `sensor` section (or sent in metres with `--metres`).
 //!
+//! `--coil-current-noise-a A` makes it a bench with a current monitor as well: every sample
+//! frame carries the coil current at the sample's instant (the amplifier's output, with that
+//! white noise) in link version 2's `T`/`U` frames (`docs/hil.md`).
+//!
 //! `--log FILE` writes one row per tick: `tick,t_s,current_a,desired_m,y_m,sample_m,count,flags,
 //! instructions` (`y_m`: the rod's true displacement at the end of the tick's period, what the
 //! command's `desired_m` aims at; `sample_m`: the reading sent at the start of the period).
@@ -67,6 +71,11 @@ pub struct Args {
     /// Send displacements in metres (`M` frames) instead of ADC counts (`S` frames).
     #[arg(long)]
     pub metres: bool,
+    /// Also send the coil current a current monitor reads on the sample's trigger, with this
+    /// white noise (standard deviation), A: link version 2's `T` (counts) or `U` (metres)
+    /// frames.
+    #[arg(long, value_name = "A")]
+    pub coil_current_noise_a: Option<f64>,
     /// Write the per-tick log here (CSV).
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
@@ -98,6 +107,11 @@ pub fn run(args: &Args) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     if !(args.noise_m.is_finite() && args.noise_m >= 0.0) {
         bail!("--noise-m must be >= 0, got {}", args.noise_m);
+    }
+    if let Some(n) = args.coil_current_noise_a {
+        if !(n.is_finite() && n >= 0.0) {
+            bail!("--coil-current-noise-a must be >= 0, got {n}");
+        }
     }
     let start = StartState::parse_among(&args.start, &HIL_STARTS)
         .map_err(|e| anyhow::anyhow!("--start: {e}"))?;
@@ -173,17 +187,43 @@ pub fn run(args: &Args) -> Result<()> {
             (Sample::Count(count), y, count)
         }
     };
-    let send = |output: &mut std::io::StdoutLock, seq: u32, sample: Sample| -> Result<()> {
+    // The current monitor's reading: the coil current at the sample's instant, with its own
+    // noise from a stream of its own (the displacement noise stays that of a run without it).
+    let monitor_noise = Normal::new(
+        0.0,
+        args.coil_current_noise_a
+            .unwrap_or(0.0)
+            .max(f64::MIN_POSITIVE),
+    )
+    .map_err(|e| anyhow::anyhow!("coil current noise: {e}"))?;
+    let mut monitor_rng = rand::rngs::StdRng::seed_from_u64(args.seed ^ 0xc011_c0de);
+    let mut coil_current_of = |plant: &Plant| -> Option<f32> {
+        args.coil_current_noise_a.map(|n| {
+            let i = plant.coil_current_at(plant.time_s());
+            let noise = if n > 0.0 {
+                monitor_noise.sample(&mut monitor_rng)
+            } else {
+                0.0
+            };
+            (i + noise) as f32
+        })
+    };
+    let send = |output: &mut std::io::StdoutLock,
+                seq: u32,
+                sample: Sample,
+                coil_current_a: Option<f32>|
+     -> Result<()> {
         let frame = SampleFrame {
             seq: seq as u16,
             sample,
+            coil_current_a,
         };
-        output.write_all(&frame.encode())?;
+        output.write_all(frame.encode().as_slice())?;
         output.flush()?;
         Ok(())
     };
     let (mut sample, mut sample_m, mut count) = sample_of(&plant, &mut rng);
-    send(&mut output, 0, sample)?;
+    send(&mut output, 0, sample, coil_current_of(&plant))?;
     let mut tick: u32 = 0;
     loop {
         let Some(frame) = read_frame(&mut input)? else {
@@ -229,7 +269,7 @@ pub fn run(args: &Args) -> Result<()> {
         tick += 1;
         (sample, sample_m, count) = sample_of(&plant, &mut rng);
         if tick < ticks {
-            send(&mut output, tick, sample)?;
+            send(&mut output, tick, sample, coil_current_of(&plant))?;
         }
     }
     if let Some(mut f) = log {

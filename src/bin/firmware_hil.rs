@@ -90,7 +90,7 @@ mod firmware {
     };
     use magctl::link::{
         CommandFrame, EndAck, EndAckWatch, ProgrammeFrame, Sample, SampleAssembler, SampleFrame,
-        KIND_BEGIN, KIND_END, SAMPLE_FRAME_BYTES,
+        KIND_BEGIN, KIND_END,
     };
     use magctl::output::{CurrentOutput, DacScale};
     use magctl::params::{BAKED_MEASURE, BAKED_PARAMETERS};
@@ -164,7 +164,12 @@ mod firmware {
                 None => Err(SensorFault::Missing),
             };
             match &mut app.recorder {
-                Some(recorder) => recorder.tick(&app.control, &mut app.state, reading),
+                Some(recorder) => recorder.tick(
+                    &app.control,
+                    &mut app.state,
+                    reading,
+                    MAILBOX.coil_current_a(),
+                ),
                 None => {
                     let programme_a = f32::from_bits(PROGRAMME_BITS.load(Ordering::Relaxed));
                     app.control
@@ -212,27 +217,33 @@ mod firmware {
         }
     }
 
-    /// Receives the next 8-byte frame of tick `seq` and decodes it with `decode` (bounded
-    /// wait: a silent link, a wrong sync byte, kind or sequence number is `Err`).
+    /// Receives the next frame of tick `seq` (8 or 12 bytes, by its kind) and decodes it with
+    /// `decode` (bounded wait: a silent link, a wrong sync byte, kind or sequence number is
+    /// `Err`).
     fn receive<T, E>(
         uart: &mut CmsdkUart,
         assembler: &mut SampleAssembler,
         seq: u16,
-        decode: impl Fn(&[u8; SAMPLE_FRAME_BYTES], u16) -> Result<T, E>,
+        decode: impl Fn(&[u8], u16) -> Result<T, E>,
     ) -> Result<T, ()> {
         for _ in 0..polls_for(seq) {
             if let Some(byte) = uart.try_read() {
                 if let Some(frame) = assembler.push(byte) {
-                    return decode(&frame, seq).map_err(|_| ());
+                    return decode(frame.as_slice(), seq).map_err(|_| ());
                 }
             }
         }
         Err(())
     }
 
-    /// Runs one control interrupt on `sample` and returns its command frame.
-    fn run_tick(sample: Option<Sample>, seq: u16) -> Option<CommandFrame> {
-        MAILBOX.post_sample(sample);
+    /// Runs one control interrupt on `sample` (and the coil current read on its trigger) and
+    /// returns its command frame.
+    fn run_tick(
+        sample: Option<Sample>,
+        coil_current_a: Option<f32>,
+        seq: u16,
+    ) -> Option<CommandFrame> {
+        MAILBOX.post_sample(sample, coil_current_a);
         NVIC::pend(Timer0Irq);
         // The pended interrupt preempts thread mode at once; these barriers make sure it has run.
         cortex_m::asm::dsb();
@@ -538,18 +549,18 @@ mod firmware {
                     Err(()) => link_fault_at = Some(tick),
                 }
             }
-            let sample = if link_fault_at.is_none() {
+            let (sample, coil_current_a) = if link_fault_at.is_none() {
                 match receive(uart, &mut assembler, seq, SampleFrame::decode) {
-                    Ok(frame) => Some(frame.sample),
+                    Ok(frame) => (Some(frame.sample), frame.coil_current_a),
                     Err(()) => {
                         link_fault_at = Some(tick);
-                        None
+                        (None, None)
                     }
                 }
             } else {
-                None
+                (None, None)
             };
-            let Some(cmd) = run_tick(sample, seq) else {
+            let Some(cmd) = run_tick(sample, coil_current_a, seq) else {
                 defmt::error!("the control interrupt did not run at tick {=u32}", tick);
                 semihosting::exit(EXIT_CHECK_FAILED)
             };

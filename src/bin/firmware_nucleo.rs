@@ -209,7 +209,10 @@ mod firmware {
                 .adc
                 .sample()
                 .and_then(|count| app.control.sensor().reading_m(count));
-            let out = app.recorder.tick(&app.control, &mut app.state, reading);
+            // The NUCLEO board has no current-monitor channel yet: the record's coil current is NaN.
+            let out = app
+                .recorder
+                .tick(&app.control, &mut app.state, reading, None);
             RECORD_LOST.store(app.recorder.lost(), Ordering::Relaxed);
             RECORD_ENDED.store(app.recorder.ended(), Ordering::Release);
             out
@@ -314,7 +317,7 @@ mod firmware {
         /// Pends the control interrupt on `sample` and returns its command frame for `tick`
         /// (`None` if the interrupt did not run).
         fn run_tick(sample: Option<Sample>, tick: u32) -> Option<CommandFrame> {
-            MAILBOX.post_sample(sample);
+            MAILBOX.post_sample(sample, None);
             NVIC::pend(Interrupt::TIM2);
             // The pended interrupt preempts thread mode at once; the barriers make sure it ran.
             cortex_m::asm::dsb();

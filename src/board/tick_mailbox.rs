@@ -17,6 +17,9 @@ pub struct TickMailbox {
     /// The sample's frame kind, 0 when the sample is missing.
     sample_kind: AtomicU8,
     sample_bits: AtomicU32,
+    /// The coil current read on the sample's trigger (f32 bits), valid when `coil_current_read`.
+    coil_current_bits: AtomicU32,
+    coil_current_read: AtomicBool,
     current_bits: AtomicU32,
     desired_bits: AtomicU32,
     flags: AtomicU8,
@@ -36,6 +39,8 @@ impl TickMailbox {
         TickMailbox {
             sample_kind: AtomicU8::new(0),
             sample_bits: AtomicU32::new(0),
+            coil_current_bits: AtomicU32::new(0),
+            coil_current_read: AtomicBool::new(false),
             current_bits: AtomicU32::new(0),
             desired_bits: AtomicU32::new(0),
             flags: AtomicU8::new(0),
@@ -44,8 +49,9 @@ impl TickMailbox {
         }
     }
 
-    /// Thread mode: the coming tick's sample (`None`: missing); clears the last command.
-    pub fn post_sample(&self, sample: Option<Sample>) {
+    /// Thread mode: the coming tick's sample (`None`: missing) and the coil current read on its
+    /// trigger (`None`: not measured); clears the last command.
+    pub fn post_sample(&self, sample: Option<Sample>, coil_current_a: Option<f32>) {
         let (kind, bits) = match sample {
             Some(Sample::Count(c)) => (KIND_SAMPLE_COUNT, c),
             Some(Sample::Metres(m)) => (KIND_SAMPLE_METRES, m.to_bits()),
@@ -53,7 +59,20 @@ impl TickMailbox {
         };
         self.ready.store(false, Ordering::Relaxed);
         self.sample_bits.store(bits, Ordering::Relaxed);
+        self.coil_current_bits
+            .store(coil_current_a.unwrap_or(0.0).to_bits(), Ordering::Relaxed);
+        self.coil_current_read
+            .store(coil_current_a.is_some(), Ordering::Relaxed);
         self.sample_kind.store(kind, Ordering::Release);
+    }
+
+    /// The interrupt: the coil current read on the tick's trigger (`None`: not measured). Read
+    /// after [`sample`](Self::sample), whose acquire orders it.
+    #[inline(always)]
+    pub fn coil_current_a(&self) -> Option<f32> {
+        self.coil_current_read
+            .load(Ordering::Relaxed)
+            .then(|| f32::from_bits(self.coil_current_bits.load(Ordering::Relaxed)))
     }
 
     /// The interrupt: the tick's sample (`None`: missing).
@@ -119,13 +138,14 @@ mod tests {
     #[test]
     fn a_tick_goes_through_and_a_new_sample_clears_the_command() {
         let m = TickMailbox::new();
-        for sample in [
-            Some(Sample::Count(1234)),
-            Some(Sample::Metres(2.5e-6)),
-            None,
+        for (sample, coil_current_a) in [
+            (Some(Sample::Count(1234)), None),
+            (Some(Sample::Metres(2.5e-6)), Some(0.75)),
+            (None, None),
         ] {
-            m.post_sample(sample);
+            m.post_sample(sample, coil_current_a);
             assert_eq!(m.sample(), sample);
+            assert_eq!(m.coil_current_a(), coil_current_a);
             assert_eq!(
                 m.command(7),
                 None,

@@ -11,8 +11,9 @@
 //! Lines (anywhere in a line, so probe-rs's timestamps and levels around them do not matter):
 //! * `MEAS-BEGIN <rate> Hz <n> experiments <start state>`
 //! * `MEAS-EXP <k> <ticks> forc <sweep Hz> 0 0` or `MEAS-EXP <k> <ticks> sine <Hz> <A> <bias A>`
-//! * `MEAS <k> <first tick> [b, b, …]`: ticks of experiment `k` from `first tick` on, 9 bytes each
-//!   (`magctl::record`: current f32, reading f32, flags u8, little endian)
+//! * `MEAS <k> <first tick> [b, b, …]`: ticks of experiment `k` from `first tick` on, 13 bytes each
+//!   (`magctl::record`: current f32, reading f32, flags u8, coil current f32 — NaN without a
+//!   current monitor —, little endian)
 //! * `MEAS-END <lost> lost <faults> sensor-faults`
 //!
 //! A record is refused — with the line number and what is wrong — when a tick is missing or
@@ -245,8 +246,10 @@ pub fn parse(lines: &[String]) -> Result<Record> {
     p.finish()
 }
 
-/// Writes the dataset folder: one `t_s,current_a,displacement_m` file per experiment and
-/// `dataset.json` (start state, each file's excitation).
+/// Writes the dataset folder: one `t_s,current_a,displacement_m` file per experiment (with the
+/// `coil_current_a` column when the record holds the current monitor's reading of every tick;
+/// a record with it for some ticks only is refused) and `dataset.json` (start state, each
+/// file's excitation).
 pub fn write_dataset(record: &Record, dir: &Path) -> Result<()> {
     use maglab_dataset::dataset_info::{DatasetInfo, FileInfo, StartState};
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -270,8 +273,23 @@ pub fn write_dataset(record: &Record, dir: &Path) -> Result<()> {
             .flatten()
             .map(|s| s.reading_m as f64)
             .collect();
+        let coil: Vec<f64> = e
+            .samples
+            .iter()
+            .flatten()
+            .map(|s| s.coil_current_a as f64)
+            .filter(|c| c.is_finite())
+            .collect();
+        ensure!(
+            coil.is_empty() || coil.len() == y.len(),
+            "{}: the record holds the coil current for {} of its {} ticks",
+            e.name(k),
+            coil.len(),
+            y.len()
+        );
         let file = format!("{}.csv", e.name(k));
-        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y, None)
+        let coil = (!coil.is_empty()).then_some(coil.as_slice());
+        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y, coil)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         info.files.insert(
             file,
@@ -371,6 +389,15 @@ mod tests {
     }
 
     fn log(ticks: u32, skip: Option<u32>, lost: u32) -> Vec<String> {
+        log_with_coil_current(ticks, skip, lost, |_| f32::NAN)
+    }
+
+    fn log_with_coil_current(
+        ticks: u32,
+        skip: Option<u32>,
+        lost: u32,
+        coil_current_a: impl Fn(u32) -> f32,
+    ) -> Vec<String> {
         let mut lines = vec![
             "INFO  MEAS-BEGIN 10000 Hz 1 experiments negative-saturation".to_string(),
             "└─ firmware_nucleo::firmware::log_programme @ src/bin/firmware_nucleo.rs:1".into(),
@@ -387,6 +414,7 @@ mod tests {
                 current_a: t as f32,
                 reading_m: 1e-6 * t as f32,
                 flags: 64,
+                coil_current_a: coil_current_a(t),
             };
             if !b.push(&s) {
                 lines.push(batch_line(&b));
@@ -408,6 +436,39 @@ mod tests {
         for (t, s) in e.samples.iter().enumerate() {
             assert_eq!(s.unwrap().current_a, t as f32);
         }
+    }
+
+    #[test]
+    fn the_coil_current_goes_into_its_column_when_every_tick_has_it() {
+        let dir = std::env::temp_dir().join(format!("xtask-record-coil-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let r = parse(&log_with_coil_current(105, None, 0, |t| {
+            0.5 + 1e-3 * t as f32
+        }))
+        .unwrap();
+        write_dataset(&r, &dir).unwrap();
+        let m = maglab_dataset::data::load_dataset(&dir).unwrap();
+        let coil = m.measurements[0]
+            .coil_current_a
+            .as_ref()
+            .expect("the column");
+        assert_eq!(coil[7], (0.5 + 1e-3 * 7.0f32) as f64);
+        // Without a monitor: no column.
+        write_dataset(&parse(&log(105, None, 0)).unwrap(), &dir).unwrap();
+        let m = maglab_dataset::data::load_dataset(&dir).unwrap();
+        assert!(m.measurements[0].coil_current_a.is_none());
+        // For some ticks only: refused.
+        let some = parse(&log_with_coil_current(105, None, 0, |t| {
+            if t < 50 {
+                f32::NAN
+            } else {
+                1.0
+            }
+        }))
+        .unwrap();
+        let e = write_dataset(&some, &dir).unwrap_err().to_string();
+        assert!(e.contains("55 of its 105 ticks"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

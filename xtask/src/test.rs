@@ -119,7 +119,7 @@ pub fn steps() -> Vec<Step> {
         },
         Step {
             name: "hil",
-            purpose: "virtual bench: firmware-hil under QEMU in lock-step with the default plant (1 s, tracking <= 1 %, <= 30 s wall) and a Python plant (also started late); conditioning vs random histories; measure -> identify -> re-bake -> track on a plant with other parameters and a rod the coil cannot saturate (closed loop <= 1 %, feedforward >= 5x better than the defaults); the interrupt on rods the baked file does not describe (<= 1,500 instructions); NaN sample (feedback on: feedforward fallback; off: 0 A), silent link, corrupted frame (0 A) (exits 7/8)",
+            purpose: "virtual bench: firmware-hil under QEMU in lock-step with the default plant (1 s, tracking <= 1 %, <= 30 s wall) and a Python plant (also started late); conditioning vs random histories; measure (with the coil-current channel, through the firmware's record) -> identify -> diagnose (none) -> re-bake -> track on a plant with other parameters and a rod the coil cannot saturate (constants within 3 %, closed loop <= 1 %, feedforward >= 5x better than the defaults); the interrupt on rods the baked file does not describe (<= 1,500 instructions); NaN sample (feedback on: feedforward fallback; off: 0 A), silent link, corrupted frame (0 A) (exits 7/8)",
             action: Action::Func(|ctx| {
                 with_background_confined(|| crate::hil::check(ctx).map(|_| ()))
             }),

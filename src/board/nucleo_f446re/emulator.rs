@@ -14,9 +14,7 @@
 //! (UE bit 13, TE bit 3, RE bit 2). The baud rate is left at its reset value: the emulator's
 //! character device does not use it.
 
-use crate::link::{
-    CommandFrame, EndAck, EndAckWatch, Sample, SampleAssembler, SampleFrame, SAMPLE_FRAME_BYTES,
-};
+use crate::link::{CommandFrame, EndAck, EndAckWatch, Sample, SampleAssembler, SampleFrame};
 use stm32f4::stm32f446 as pac;
 
 const APB1ENR_USART2EN: u32 = 1 << 17;
@@ -121,14 +119,16 @@ impl PlantLink {
         };
         for _ in 0..polls {
             if let Some(frame) = self.try_read().and_then(|b| self.assembler.push(b)) {
-                return self.decoded(&frame);
+                return self.decoded(frame.as_slice());
             }
         }
         self.failed = true;
         None
     }
 
-    fn decoded(&mut self, frame: &[u8; SAMPLE_FRAME_BYTES]) -> Option<Sample> {
+    /// The sample of a received frame (a coil current in it is not used: the tracking image
+    /// reads the displacement only).
+    fn decoded(&mut self, frame: &[u8]) -> Option<Sample> {
         match SampleFrame::decode(frame, self.seq) {
             Ok(f) => {
                 self.seq = self.seq.wrapping_add(1);

@@ -5,10 +5,10 @@
 use super::measurement::Programme;
 use super::Inject;
 use crate::frame_socket::{queued_bytes, unacknowledged_bytes, FrameSocket};
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, ensure, Context, Result};
 use magctl::link::{
-    CommandFrame, EndAck, ProgrammeFrame, Sample, SampleFrame, COMMAND_FRAME_BYTES, KIND_COMMAND,
-    KIND_END, SAMPLE_FRAME_BYTES,
+    received_frame_bytes, CommandFrame, EndAck, ProgrammeFrame, Sample, SampleFrame,
+    COMMAND_FRAME_BYTES, KIND_COMMAND, KIND_END, MAX_RECEIVED_FRAME_BYTES,
 };
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
@@ -53,8 +53,8 @@ pub(super) fn accept_qemu(
 pub(super) struct Collected {
     /// The firmware's command frames, in tick order (the k-th `C` frame is tick k's).
     pub commands: Mutex<Vec<CommandFrame>>,
-    /// The plant's samples as forwarded (faults injected), in tick order.
-    pub samples: Mutex<Vec<Sample>>,
+    /// The plant's sample frames as forwarded (faults injected), in tick order.
+    pub samples: Mutex<Vec<SampleFrame>>,
 }
 
 /// Firmware → plant: copies every frame, decodes the command frames and acknowledges `E`.
@@ -103,8 +103,9 @@ pub(super) fn firmware_to_plant(
     })
 }
 
-/// Plant → firmware: copies every sample frame, injects `inject`, and in measurement mode
-/// sends the programme's current of each tick first.
+/// Plant → firmware: copies every sample frame (8 bytes, or 12 with the coil current: the kind
+/// byte says which), injects `inject`, and in measurement mode sends the programme's current of
+/// each tick first.
 pub(super) fn plant_to_firmware(
     mut from: ChildStdout,
     to: Arc<Mutex<TcpStream>>,
@@ -114,19 +115,31 @@ pub(super) fn plant_to_firmware(
     activity: Arc<LinkActivity>,
 ) -> std::thread::JoinHandle<Result<()>> {
     std::thread::spawn(move || -> Result<()> {
-        let mut buf = [0u8; SAMPLE_FRAME_BYTES];
+        let mut buf = [0u8; MAX_RECEIVED_FRAME_BYTES];
         let mut tick: u32 = 0;
         loop {
             activity.reading_plant.store(true, Ordering::Release);
-            let n = read_full(&mut from, &mut buf)?;
+            let n = read_full(&mut from, &mut buf[..2])?;
+            let len = received_frame_bytes(buf[1]);
+            let rest = if n == 2 && len > 2 {
+                read_full(&mut from, &mut buf[2..len])?
+            } else {
+                0
+            };
             activity.reading_plant.store(false, Ordering::Release);
             if n == 0 {
                 return Ok(());
             }
+            ensure!(
+                rest + 2 == len,
+                "plant sent a bad frame at tick {tick}: kind byte {:#04x} ({} bytes read)",
+                buf[1],
+                n + rest
+            );
             activity.plant_frames.fetch_add(1, Ordering::AcqRel);
-            let mut frame = SampleFrame::decode(&buf, tick as u16)
+            let mut frame = SampleFrame::decode(&buf[..len], tick as u16)
                 .map_err(|e| anyhow::anyhow!("plant sent a bad frame at tick {tick}: {e:?}"))?;
-            let mut bytes = buf;
+            let mut bytes = buf[..len].to_vec();
             match inject {
                 Some(Inject::Silent(at)) if tick >= at => {
                     // Keep reading so the plant is not blocked, forward nothing.
@@ -135,11 +148,11 @@ pub(super) fn plant_to_firmware(
                 }
                 Some(Inject::Nan(at)) if tick == at => {
                     frame.sample = Sample::Metres(f32::NAN);
-                    bytes = frame.encode();
+                    bytes = frame.encode().as_slice().to_vec();
                 }
                 Some(Inject::Range(at)) if tick == at => {
                     frame.sample = Sample::Count(u32::MAX);
-                    bytes = frame.encode();
+                    bytes = frame.encode().as_slice().to_vec();
                 }
                 Some(Inject::Garbage(at)) if tick == at => bytes[0] = 0x00,
                 _ => {}
@@ -148,7 +161,7 @@ pub(super) fn plant_to_firmware(
                 .samples
                 .lock()
                 .map_err(|_| anyhow::anyhow!("poisoned"))?
-                .push(frame.sample);
+                .push(frame);
             let mut w = to.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
             if let Some(p) = &programme {
                 // Measurement mode: the programme's current of this tick goes first.

@@ -1,5 +1,5 @@
-//! Measure → identify → re-bake → track on a plant whose parameters are not the baked ones:
-//! the bench workflow, end to end, under QEMU.
+//! Measure (with the coil-current channel) → identify → diagnose → re-bake → track on a plant
+//! whose parameters are not the baked ones: the bench workflow, end to end, under QEMU.
 
 use super::measurement::identification_programme;
 use super::{run_once, HilRun};
@@ -30,6 +30,11 @@ const FEATURES: &str = "board-mps2-an386,panic-never";
 /// The identified constants' tolerance, relative to the plant's.
 const CONSTANT_TOLERANCE: f64 = 0.03;
 
+/// The plant's current monitor: white noise of its reading, A (a typical monitor through a
+/// 12-bit ADC over ±2 A). The plant sends the coil current in every sample frame (link version
+/// 2), the firmware records it, and the dataset has the `coil_current_a` column.
+const MONITOR_NOISE_A: f64 = 1e-3;
+
 /// Measure → identify → bake → track on a plant whose parameters are not the baked ones
 /// (`host-tests/hil/other_actuator.json`: R_eddy +25 %, ξ −20 %, f0 +15 %) and whose rod the
 /// coil cannot saturate ([`PLANT_ROD`]). Returns the summary lines; fails unless the identified
@@ -45,6 +50,7 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
     let mut m = HilRun::new(base.join("measure"));
     m.plant_params = Some(plant.clone());
     m.plant_rod = Some(PLANT_ROD.into());
+    m.plant_coil_current_noise_a = Some(MONITOR_NOISE_A);
     m.measure_local = Some(data.clone());
     let r = run_once(ctx, elf, Some(exe), &m)?;
     let mut s = r.summary.clone();
@@ -53,6 +59,7 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
     let mut streamed = HilRun::new(base.join("measure_streamed"));
     streamed.plant_params = Some(plant.clone());
     streamed.plant_rod = Some(PLANT_ROD.into());
+    streamed.plant_coil_current_noise_a = Some(MONITOR_NOISE_A);
     streamed.measure = Some((programme.clone(), base.join("unused")));
     streamed.measure_ticks = Some(STREAMED_CHECK_TICKS);
     let r2 = run_once(ctx, elf, Some(exe), &streamed)?;
@@ -94,6 +101,19 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
     run_checked(id)?;
     let identify_s = started.elapsed().as_secs_f64();
     let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&identified)?)?;
+    // The coil current went through the firmware's record into the dataset, and the
+    // identification judged the amplifier on it (the plant's follows the command: ruled out).
+    let judgement = &json["provenance"]["coil_current"]["judgement"];
+    ensure!(
+        judgement["amplifier_named"] == serde_json::Value::Bool(false),
+        "the identification did not judge the amplifier on the recorded coil current \
+         (provenance.coil_current: {judgement})"
+    );
+    writeln!(
+        s,
+        "  coil current recorded (plant's monitor, {MONITOR_NOISE_A} A noise, through the firmware's record): {}",
+        judgement["reason"].as_str().unwrap_or("?")
+    )?;
     let truth: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(ctx.root.join(&plant))?)?;
     let nominal: serde_json::Value =
@@ -127,6 +147,37 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
             100.0 * error
         )?;
     }
+    // Diagnose the measured folder with the identified file: split at the coil (the amplifier
+    // on the recorded current, the rest of the library on it against the displacement), a
+    // plant without effects must come out `none`.
+    let report = base.join("diagnosis");
+    let mut diagnose = Command::new(exe);
+    diagnose
+        .arg("diagnose")
+        .arg("--params")
+        .arg(&identified)
+        .arg("-o")
+        .arg(&report)
+        .arg(&data)
+        .current_dir(&ctx.root);
+    let started = Instant::now();
+    run_checked(diagnose)?;
+    let d: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("diagnosis.json"))?)?;
+    writeln!(
+        s,
+        "  maglab diagnose --params identified.json on the measured folder: {} (grade {}; amplifier named on the coil current: {}), {:.0} s",
+        d["verdict"].as_str().unwrap_or("?"),
+        d["grade"].as_str().unwrap_or("?"),
+        d["coil_current"]["amplifier_named"],
+        started.elapsed().as_secs_f64()
+    )?;
+    ensure!(
+        d["verdict"] == "none" && d["coil_current"]["amplifier_named"] == false,
+        "the measured folder of a plant without effects diagnosed as `{}`: {}",
+        d["verdict"].as_str().unwrap_or("?"),
+        d["verdict_reason"].as_str().unwrap_or("?")
+    );
     // Re-bake: the same firmware built with the base and with the identified file, each kept as
     // a copy; then the default build again, which the later runs use.
     let base_elf = bake(

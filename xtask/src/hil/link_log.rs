@@ -11,12 +11,14 @@ use std::path::Path;
 
 /// The header of `link.csv`.
 pub const LINK_CSV_HEADER: &str =
-    "tick,sample_kind,sample_raw,sample_m,current_a,desired_m,flags,instructions";
+    "tick,sample_kind,sample_raw,sample_m,current_a,desired_m,flags,instructions,coil_current_a";
 
-/// One tick of the link: the plant's sample and the firmware's command.
+/// One tick of the link: the plant's sample (with the coil current its current monitor read, in
+/// link version 2's frames) and the firmware's command.
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct TickRow {
     pub sample: Option<Sample>,
+    pub coil_current_a: Option<f32>,
     pub command: Option<CommandFrame>,
 }
 
@@ -34,9 +36,18 @@ pub(super) fn write_link_csv(path: &Path, rows: &[TickRow]) -> Result<()> {
     );
     writeln!(f, "{LINK_CSV_HEADER}")?;
     for (k, r) in rows.iter().enumerate() {
+        let with_current = r.coil_current_a.is_some();
         let (kind, raw, m) = match r.sample {
-            Some(s @ Sample::Count(c)) => ("S", c.to_string(), sample_m(&scale, s)),
-            Some(s @ Sample::Metres(v)) => ("M", format!("{v:e}"), sample_m(&scale, s)),
+            Some(s @ Sample::Count(c)) => (
+                if with_current { "T" } else { "S" },
+                c.to_string(),
+                sample_m(&scale, s),
+            ),
+            Some(s @ Sample::Metres(v)) => (
+                if with_current { "U" } else { "M" },
+                format!("{v:e}"),
+                sample_m(&scale, s),
+            ),
             None => ("", String::new(), f64::NAN),
         };
         let (i, d, fl, ins) = match r.command {
@@ -48,7 +59,11 @@ pub(super) fn write_link_csv(path: &Path, rows: &[TickRow]) -> Result<()> {
             ),
             None => Default::default(),
         };
-        writeln!(f, "{k},{kind},{raw},{m:e},{i},{d},{fl},{ins}")?;
+        let coil = r
+            .coil_current_a
+            .map(|c| format!("{c:e}"))
+            .unwrap_or_default();
+        writeln!(f, "{k},{kind},{raw},{m:e},{i},{d},{fl},{ins},{coil}")?;
     }
     f.flush()?;
     Ok(())

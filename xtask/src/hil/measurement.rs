@@ -124,9 +124,11 @@ pub(super) fn check_record_against_link(
 }
 
 /// Writes the dataset folder of a measurement run: one `t_s,current_a,displacement_m` file per
-/// experiment (the current the firmware applied and its reading of the tick's sample) and
-/// `dataset.json` (the programme's start state, `negative-saturation` or `conditioned`, and the
-/// excitation of each file).
+/// experiment (the current the firmware applied and its reading of the tick's sample), with the
+/// `coil_current_a` column when the plant's current monitor read every tick (link version 2's
+/// sample frames), and `dataset.json` (the programme's start state, `negative-saturation` or
+/// `conditioned`, and the excitation of each file). A run whose plant sent the coil current for
+/// some ticks only is refused.
 pub(super) fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path) -> Result<()> {
     use maglab_dataset::dataset_info::{DatasetInfo, FileInfo, StartState};
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -141,11 +143,15 @@ pub(super) fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path)
         let mut t = Vec::with_capacity(*len);
         let mut i = Vec::with_capacity(*len);
         let mut y = Vec::with_capacity(*len);
+        let mut coil = Vec::with_capacity(*len);
         for k in 0..*len {
-            let c = rows
-                .get(start + k)
+            let row = rows.get(start + k);
+            let c = row
                 .and_then(|r| r.command)
                 .with_context(|| format!("{name}: no command frame for tick {}", start + k))?;
+            if let Some(i) = row.and_then(|r| r.coil_current_a) {
+                coil.push(i as f64);
+            }
             ensure!(
                 c.flags & CommandFlags::MEASURE != 0 && c.desired_m.is_finite(),
                 "{name}: tick {} has no valid reading (flags {})",
@@ -156,8 +162,16 @@ pub(super) fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path)
             i.push(c.value as f64);
             y.push(c.desired_m as f64);
         }
+        ensure!(
+            coil.is_empty() || coil.len() == t.len(),
+            "{name}: the plant sent the coil current for {} of its {} ticks (link version 2 frames \
+             for some ticks only)",
+            coil.len(),
+            t.len()
+        );
         let file = format!("{name}.csv");
-        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y, None)
+        let coil = (!coil.is_empty()).then_some(coil.as_slice());
+        maglab_dataset::data::write_measurement(&dir.join(&file), &t, &i, &y, coil)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         info.files.insert(
             file,

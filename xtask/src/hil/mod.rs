@@ -136,6 +136,10 @@ pub struct HilRun {
     /// The default plant's own rod (`maglab hil-plant --rod FAMILY:FACTOR`): a Preisach measure
     /// on the plant's grid instead of the file's.
     pub plant_rod: Option<String>,
+    /// The default plant's current monitor (`maglab hil-plant --coil-current-noise-a`): every
+    /// sample frame carries the coil current (link version 2), and a measurement's dataset has
+    /// the `coil_current_a` column.
+    pub plant_coil_current_noise_a: Option<f64>,
     /// Measurement mode: the programme to stream and where to write the dataset folder.
     pub measure: Option<(Arc<Programme>, PathBuf)>,
     /// Streamed measurement of only the programme's first ticks (no dataset written).
@@ -169,6 +173,7 @@ impl HilRun {
             feedback: true,
             plant_params: None,
             plant_rod: None,
+            plant_coil_current_noise_a: None,
             measure: None,
             measure_ticks: None,
             measure_local: None,
@@ -261,6 +266,9 @@ fn plant_command(
             }
             if let Some(rod) = &run.plant_rod {
                 c.args(["--rod", rod]);
+            }
+            if let Some(n) = run.plant_coil_current_noise_a {
+                c.args(["--coil-current-noise-a", &n.to_string()]);
             }
             for e in &run.effects {
                 c.args(["--effect", e]);
@@ -399,7 +407,8 @@ fn bridge_run(
             .map_err(|_| anyhow::anyhow!("poisoned"))?;
         (0..c.len().max(sm.len()))
             .map(|k| TickRow {
-                sample: sm.get(k).copied(),
+                sample: sm.get(k).map(|f| f.sample),
+                coil_current_a: sm.get(k).and_then(|f| f.coil_current_a),
                 command: c.get(k).copied(),
             })
             .collect()
@@ -697,6 +706,11 @@ pub struct Args {
     /// The default plant's own rod, `FAMILY:FACTOR[:C:S]` (`maglab hil-plant --rod`).
     #[arg(long, value_name = "FAMILY:FACTOR")]
     plant_rod: Option<String>,
+    /// The default plant's current monitor, with this noise, A (`maglab hil-plant
+    /// --coil-current-noise-a`): the sample frames carry the coil current (docs/hil.md, link
+    /// version 2) and `--measure` writes it into the dataset.
+    #[arg(long, value_name = "A")]
+    plant_coil_current_noise_a: Option<f64>,
     /// Measure the whole control interrupt on a matrix of rods the baked model does not
     /// describe (docs/firmware.md), and nothing else.
     #[arg(long)]
@@ -766,6 +780,7 @@ pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
     run.prior_history = args.prior_history;
     run.plant_params = args.plant_params.clone();
     run.plant_rod = args.plant_rod.clone();
+    run.plant_coil_current_noise_a = args.plant_coil_current_noise_a;
     run.ticks = args.ticks;
     run.inverse = args.inverse.clone();
     run.conditioning = !args.no_conditioning;
