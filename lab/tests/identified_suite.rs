@@ -1,6 +1,6 @@
 //! The blind suite through identify → diagnose: each case of the diagnosis's blind suite
 //! (`maglab_plant::suite`, the same draws as `diagnose/tests/blind_suite.rs`) recorded with a
-//! quasi-static reversal sweep and 1 Hz loops on its sines' loops in front of its sines, written as a dataset folder, identified
+//! quasi-static reversal sweep in front of its sines, written as a dataset folder, identified
 //! with `maglab identify` (the effect is in the data the masses and R_eddy, ξ, f0 come from),
 //! then diagnosed with `maglab diagnose --params identified.json`. The cases whose start states
 //! the suite leaves undocumented document only the sweep's.
@@ -27,9 +27,7 @@
 //! has the figures. Run it with
 //! `IDENTIFIED_CASES=32 cargo test --release -p maglab --test identified_suite -- --ignored --nocapture`.
 mod common;
-use maglab_plant::bench::{
-    forc_experiment, operating_loops, record_all, sine_experiment, write_dataset,
-};
+use maglab_plant::bench::{forc_experiment, record_all, write_dataset};
 use maglab_plant::suite;
 use std::path::Path;
 use std::process::Command;
@@ -89,28 +87,8 @@ fn write_case(
         Ok(other) => panic!("IDENTIFIED_COIL_CURRENT `{other}`: expected `measured` or `off`"),
     }
     let rate = case.settings.rate_hz;
-    // A FORC sweep, each of the sines' loops once slowly (1 Hz, two periods: quasi-static data
-    // on the loops the sines run, as docs/identification.md "What to record" asks; without them
-    // the masses of those loops are not measured, `maglab_model::coverage`), then the sines.
     let mut experiments = vec![forc_experiment(&params, 1.0, rate).expect("FORC sweep")];
-    for (bias_a, amplitude_a) in operating_loops(&case.experiments, 0.01) {
-        experiments.push(sine_experiment(
-            experiments.len(),
-            case.start,
-            bias_a,
-            amplitude_a,
-            1.0,
-            2.0,
-            rate,
-        ));
-    }
     experiments.extend(case.experiments.iter().cloned());
-    // Recording order is file-name order (an experiment started `previous` continues the one
-    // before it): number every file by its place.
-    for (k, e) in experiments.iter_mut().enumerate().skip(1) {
-        let rest = e.name.split_once('_').map_or(e.name.as_str(), |(_, r)| r);
-        e.name = format!("{k:02}_{rest}");
-    }
     let recordings =
         record_all(&params, &case.effects, &experiments, &case.settings).expect("plant runs");
     let dir = root.join(format!("case{index:02}"));
