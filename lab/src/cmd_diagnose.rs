@@ -96,6 +96,9 @@ pub fn run(args: &Args) -> Result<()> {
     for w in &d.parameter_file_warnings {
         println!("WARNING (from the parameter file's identification): {w}");
     }
+    for prior in &d.datasheet_priors {
+        println!("datasheet prior used: {prior}");
+    }
     if let Some(w) = &d.unmeasured_loops_warning {
         println!("WARNING: {w}");
     }

@@ -270,11 +270,30 @@ fn print_result(
     base: &actuator_params::ActuatorParams,
     base_name: &str,
 ) {
+    for prior in maglab_identify::pipeline::datasheet_priors(base) {
+        println!("datasheet prior: {}", prior.describe());
+    }
     if let Some(choice) = &id.reversible {
         println!("reversible part (--reversible auto): {}", choice.reason);
     }
     if let Some(fit) = &id.dynamic {
         print_dynamic_fit(fit, args.resistivity_ohm_m);
+        if let Some(instruments) = fit
+            .refined
+            .as_ref()
+            .and_then(|r| r.details.get("instruments_fitted_with_the_rod"))
+            .and_then(|v| v.as_object())
+            .filter(|m| !m.is_empty())
+        {
+            let list: Vec<String> = instruments
+                .iter()
+                .map(|(name, v)| format!("{name} = {v}"))
+                .collect();
+            println!(
+                "instruments fitted with the rod (their datasheet bandwidth given): {}",
+                list.join(", ")
+            );
+        }
     }
     if let Some(kept) = &id.passes {
         print_passes(kept);

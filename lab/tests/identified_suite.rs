@@ -19,6 +19,8 @@
 //! `IDENTIFIED_DESIGN=varied` records the sines in a design drawn per case (frequencies,
 //! amplitudes, bias, rate, duration: `maglab_plant::suite::Design`);
 //! `IDENTIFIED_COIL_CURRENT=measured` records the coil current as well (`coil_current_a`).
+//! `IDENTIFIED_FROM=separate` identifies from a separate identification folder recorded on the
+//! same bench instead of the case's own folder (`write_case`).
 //!
 //! **Ignored in `cargo test`: it does not reach 90 %.** The identification absorbs part of a lag
 //! (an amplifier's, a sensor's, a load's) into R_eddy, ξ, f0 identified from the same sines, and
@@ -27,7 +29,9 @@
 //! has the figures. Run it with
 //! `IDENTIFIED_CASES=32 cargo test --release -p maglab --test identified_suite -- --ignored --nocapture`.
 mod common;
-use maglab_plant::bench::{forc_experiment, record_all, write_dataset};
+use maglab_plant::bench::{
+    forc_experiment, identification_design_covering, operating_loops, record_all, write_dataset,
+};
 use maglab_plant::suite;
 use std::path::Path;
 use std::process::Command;
@@ -62,13 +66,24 @@ struct Outcome {
 }
 
 /// Draws case `index` of the suite `seed`, records it behind a quasi-static reversal sweep and
-/// writes the dataset folder under `root`: `(case, case folder, data folder)`.
+/// writes the dataset folder under `root`: `(case, case folder, data folder, the folder to
+/// identify from)` — the data folder itself, or with `IDENTIFIED_FROM=separate` a separate
+/// identification folder recorded on the same bench (the case's plant, effects and recording
+/// settings): the standard identification dataset (reversal sweep, 1 Hz loops, sines 20–400 Hz;
+/// `maglab_plant::bench::identification_design`) with 1 Hz loops on the case's own loops as
+/// docs/identification.md "What to record" asks, every start documented — a bench's
+/// measurement programme, identified once, then the case's experiments diagnosed.
 fn write_case(
     seed: u64,
     index: usize,
     kind: suite::Kind,
     root: &Path,
-) -> (suite::Case, std::path::PathBuf, std::path::PathBuf) {
+) -> (
+    suite::Case,
+    std::path::PathBuf,
+    std::path::PathBuf,
+    std::path::PathBuf,
+) {
     let params = actuator_params::paper_defaults();
     // `IDENTIFIED_DESIGN=varied`: the sines in a design drawn per case (`suite::Design`).
     let design = suite::Design::from_env("IDENTIFIED_DESIGN").unwrap_or_else(|e| panic!("{e}"));
@@ -102,16 +117,29 @@ fn write_case(
         info.files.retain(|name, _| name.starts_with("00_forc"));
         info.write(&data).expect("dataset.json written");
     }
-    (case, dir, data)
+    let identify_from = match std::env::var("IDENTIFIED_FROM").as_deref() {
+        Err(_) | Ok("") | Ok("case") => data.clone(),
+        Ok("separate") => {
+            let design =
+                identification_design_covering(rate, &operating_loops(&case.experiments, 0.01));
+            let recordings =
+                record_all(&params, &case.effects, &design, &case.settings).expect("plant runs");
+            let folder = dir.join("identification");
+            write_dataset(&folder, &recordings).expect("dataset written");
+            folder
+        }
+        Ok(other) => panic!("IDENTIFIED_FROM `{other}`: expected `case` or `separate`"),
+    };
+    (case, dir, data, identify_from)
 }
 
 fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome {
-    let (case, dir, data) = write_case(seed, index, kind, root);
+    let (case, dir, data, identify_from) = write_case(seed, index, kind, root);
     let s = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
     let identified = dir.join("identified.json");
     // From a datasheet's base file, not the plant's own constants (module docs).
     let started = std::time::Instant::now();
-    let identify = common::identify_args(&dir, &data, &identified);
+    let identify = common::identify_args(&dir, &identify_from, &identified);
     let log =
         maglab(&identify.iter().map(String::as_str).collect::<Vec<_>>()).expect("identify runs");
     std::fs::write(dir.join("identify.log"), log).expect("log written");
@@ -297,7 +325,7 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
 fn identify_scans_f0_when_the_file_cannot_meet_the_lags() {
     let kinds = suite::kinds(1, 32);
     let temp = tempfile::tempdir().expect("temp dir");
-    let (case, _, data) = write_case(1, 6, kinds[6].clone(), temp.path());
+    let (case, _, _, data) = write_case(1, 6, kinds[6].clone(), temp.path());
     assert!(
         case.describe().contains("mechanical_load"),
         "the suite's draw changed: case 6 is now {}",

@@ -320,8 +320,16 @@ const fn spec(
     }
 }
 
-/// The effect's own parameters.
+/// The effect's own parameters: the library's ranges ([`library_parameters`]) with the file's
+/// datasheet priors in place of those they bound ([`crate::priors`]).
 pub fn effect_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
+    let mut specs = library_parameters(effect, nominal);
+    nominal.priors.narrow(effect, &mut specs);
+    specs
+}
+
+/// The effect's own parameters with the library's ranges.
+pub fn library_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
     let f0 = nominal.resonance_hz;
     // A reversible term that saturates well inside the operating range is a constant
     // magnetization there (the start state's offset), not a susceptibility.
@@ -432,11 +440,13 @@ pub fn parameter_count_at(effects: &[EffectName], i: usize) -> usize {
 /// `R` within the whole step).
 pub fn second_term_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpec> {
     match effect {
-        EffectName::EddyFrequencyDependence => effect_parameters(effect, nominal)
+        EffectName::EddyFrequencyDependence => library_parameters(effect, nominal)
             .into_iter()
             .take(2)
             .collect(),
-        EffectName::MechanicalLoad => effect_parameters(effect, nominal),
+        // Its mass is relative to the first load mass: the datasheet's load mass bounds the
+        // first.
+        EffectName::MechanicalLoad => library_parameters(effect, nominal),
         _ => Vec::new(),
     }
 }

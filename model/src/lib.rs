@@ -29,4 +29,5 @@ pub mod fit;
 pub mod model;
 pub mod nuisance;
 pub mod plan_fit;
+pub mod priors;
 pub mod residual;

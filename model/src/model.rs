@@ -85,6 +85,8 @@ pub struct Nominal {
     /// (`magctl::inverse::Conditioning`); `None` when it saturates the rod. A documented start
     /// `conditioned` is that sweep.
     pub conditioning_sweep_a_per_m: Option<(f32, f32)>,
+    /// The file's datasheet priors on the candidates' parameters.
+    pub priors: crate::priors::Priors,
 }
 
 impl Nominal {
@@ -108,6 +110,7 @@ impl Nominal {
                 .max(p.preisach.h_min_a_per_m.abs()),
             slowest_period_s: 0.25,
             conditioning_sweep_a_per_m: conditioning_sweep_a_per_m(p),
+            priors: crate::priors::Priors::from_params(p),
         }
     }
 }

@@ -862,3 +862,107 @@ mod coil_current {
         );
     }
 }
+
+mod priors {
+    use actuator_params::{Datasheet, Toleranced};
+    use maglab_model::candidates::{effect_parameters, library_parameters, Edge};
+    use maglab_model::effects::EffectName;
+    use maglab_model::model::Nominal;
+    use maglab_model::priors::{minus_3db_ratio, TERFENOL_DENSITY_KG_M3};
+
+    fn nominal_with(datasheet: Datasheet) -> Nominal {
+        let mut p = actuator_params::paper_defaults();
+        p.datasheet = Some(datasheet);
+        Nominal::from_params(&p)
+    }
+
+    fn t(value: f64, plus_minus: f64) -> Option<Toleranced> {
+        Some(Toleranced { value, plus_minus })
+    }
+
+    #[test]
+    fn the_minus_3db_ratio_of_a_second_order_low_pass() {
+        // ζ = 1/√2 (Butterworth): the −3 dB frequency is the natural frequency.
+        assert!((minus_3db_ratio(std::f64::consts::FRAC_1_SQRT_2) - 1.0).abs() < 1e-12);
+        // Against |H(j g ωn)|² = 1/2 evaluated directly.
+        for zeta in [0.3, 0.5, 1.0, 3.0] {
+            let g = minus_3db_ratio(zeta);
+            let mag2 = 1.0 / ((1.0 - g * g).powi(2) + (2.0 * zeta * g).powi(2));
+            assert!((mag2 - 0.5).abs() < 1e-12, "zeta {zeta}: {mag2}");
+        }
+    }
+
+    #[test]
+    fn a_datasheet_bounds_the_parameters_it_fixes_and_no_other() {
+        let n = nominal_with(Datasheet {
+            sensor_bandwidth_hz: t(1500.0, 150.0),
+            sensor_delay_s: t(5e-5, 8e-5),
+            load_mass_kg: t(0.01, 0.002),
+            ..Datasheet::default()
+        });
+        let sensor = effect_parameters(EffectName::SensorDynamics, &n);
+        let library = library_parameters(EffectName::SensorDynamics, &n);
+        let (natural, damping, delay) = (&sensor[0], &sensor[1], &sensor[2]);
+        // The natural frequencies some damping ratio of the range maps into 1350-1650 Hz.
+        assert!((natural.lo - 1350.0 / minus_3db_ratio(library[1].lo)).abs() < 1e-9);
+        assert!((natural.hi - 1650.0 / minus_3db_ratio(library[1].hi)).abs() < 1e-9);
+        assert_eq!(natural.edge, Edge::Both);
+        assert_eq!(
+            damping, &library[1],
+            "the damping ratio has no datasheet value"
+        );
+        // The delay's band cut at 0, linear (a log range cannot start at 0).
+        assert_eq!((delay.lo, delay.log), (0.0, false));
+        assert!((delay.hi - 1.3e-4).abs() < 1e-15);
+        // The load's mass over a third of the rod's.
+        let p = actuator_params::paper_defaults();
+        let rod = TERFENOL_DENSITY_KG_M3 * p.actuator.rod_area_m2 * p.actuator.rod_length_m / 3.0;
+        let load = effect_parameters(EffectName::MechanicalLoad, &n);
+        assert!(
+            (load[0].lo - 0.008 / rod).abs() < 1e-12 && (load[0].hi - 0.012 / rod).abs() < 1e-12
+        );
+        // Untouched: the amplifier (no value given) and every other effect.
+        assert_eq!(
+            effect_parameters(EffectName::AmplifierBandwidth, &n),
+            library_parameters(EffectName::AmplifierBandwidth, &n)
+        );
+        // The reports list each value and what it bounds; R and L bound nothing.
+        let n2 = nominal_with(Datasheet {
+            coil_resistance_ohm: t(5.8, 0.3),
+            amplifier_bandwidth_hz: t(2000.0, 200.0),
+            ..Datasheet::default()
+        });
+        let uses = n2.priors.uses(&|e| library_parameters(e, &n2));
+        assert_eq!(uses.len(), 2);
+        assert_eq!(
+            uses[0].acts_on.as_ref().map(|(p, _)| p.as_str()),
+            Ok("amplifier_bandwidth.natural_hz")
+        );
+        assert!(uses[1].acts_on.is_err(), "{}", uses[1].describe());
+        // The amplifier is an instrument fitted with the rod unless the coil current is measured.
+        assert_eq!(
+            n2.priors.instruments(false),
+            [EffectName::AmplifierBandwidth]
+        );
+        assert!(n2.priors.instruments(true).is_empty());
+    }
+
+    #[test]
+    fn starts_lie_at_the_datasheet_values_inside_the_bands() {
+        let n = nominal_with(Datasheet {
+            sensor_bandwidth_hz: t(1500.0, 150.0),
+            ..Datasheet::default()
+        });
+        let specs = effect_parameters(EffectName::SensorDynamics, &n);
+        let start = n.priors.start(EffectName::SensorDynamics, &specs);
+        assert_eq!(start[0], 1500.0);
+        assert!((start[1] - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-15);
+        assert_eq!(
+            start[2], 0.0,
+            "a delay without a datasheet value starts at 0"
+        );
+        for (v, s) in start.iter().zip(&specs) {
+            assert!((s.lo..=s.hi).contains(v));
+        }
+    }
+}

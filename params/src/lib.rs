@@ -11,9 +11,11 @@
 
 pub mod codegen;
 pub mod core_fields;
+mod datasheet;
 pub mod default_measure;
 mod schema;
 
+pub use datasheet::{Datasheet, Toleranced};
 pub use schema::*;
 
 /// The paper's identified constants (Tan & Baras, Section 4) with the analytic default measure
@@ -99,5 +101,6 @@ pub fn paper_defaults() -> ActuatorParams {
             source: "analytic default (paper constants, synthetic Preisach measure)".into(),
             details,
         },
+        datasheet: None,
     }
 }

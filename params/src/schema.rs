@@ -41,6 +41,10 @@ pub struct ActuatorParams {
     pub trajectory: Trajectory,
     /// Where these numbers come from. Free-form for tools; `source` is required.
     pub provenance: Provenance,
+    /// What the bench's datasheets give, with tolerances: priors of the host tools' fits
+    /// (optional; the firmware bakes none of it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub datasheet: Option<crate::Datasheet>,
 }
 
 /// Physical constants of the actuator.
@@ -413,6 +417,9 @@ impl ActuatorParams {
         self.check_reversible(&err)?;
         self.check_masses(&err)?;
         self.check_reach(&err)?;
+        if let Some(d) = &self.datasheet {
+            d.check(&err)?;
+        }
         Ok(())
     }
 

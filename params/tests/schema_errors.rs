@@ -218,3 +218,62 @@ fn a_valid_range_above_the_rest_position_is_refused_for_a_firmware_image_only() 
         .and_then(|p| p.validate_for_firmware("default"))
         .expect("the default file is fit for a firmware image");
 }
+
+/// The optional `datasheet` section (host tools' priors, not in the cases above: the firmware
+/// bakes none of it): each bad value is rejected naming its field; a valid one reads back.
+#[test]
+fn datasheet_values_are_checked_and_read_back() {
+    let with = |entry: serde_json::Value| {
+        let mut v: serde_json::Value = serde_json::from_str(&valid_text()).expect("JSON");
+        v["datasheet"] = entry;
+        serde_json::to_string_pretty(&v).expect("JSON")
+    };
+    let rejected = [
+        (
+            serde_json::json!({"sensor_bandwidth_hz": {"value": 100.0, "plus_minus": 150.0}}),
+            "datasheet.sensor_bandwidth_hz",
+            "must lie above 0",
+        ),
+        (
+            serde_json::json!({"sensor_delay_s": {"value": -1e-5, "plus_minus": 1e-6}}),
+            "datasheet.sensor_delay_s",
+            "must be >= 0",
+        ),
+        (
+            serde_json::json!({"load_mass_kg": {"value": 0.01, "plus_minus": -0.001}}),
+            "datasheet.load_mass_kg.plus_minus",
+            "must be >= 0",
+        ),
+        (
+            serde_json::json!({"sensor_bandwidth": {"value": 1.0, "plus_minus": 0.1}}),
+            "datasheet.sensor_bandwidth",
+            "unknown field `sensor_bandwidth`",
+        ),
+        (
+            serde_json::json!({"coil_inductance_h": {"value": 0.008}}),
+            "datasheet.coil_inductance_h.plus_minus",
+            "missing field",
+        ),
+    ];
+    for (entry, field, reason) in rejected {
+        let err = ActuatorParams::parse(&with(entry.clone()), "sheet.json")
+            .expect_err("a bad datasheet value must be rejected");
+        assert_eq!(err.field, field, "{entry}: {err}");
+        assert!(err.reason.contains(reason), "{entry}: {err}");
+    }
+    let good = with(serde_json::json!({
+        "sensor_delay_s": {"value": 5e-5, "plus_minus": 8e-5},
+        "amplifier_bandwidth_hz": {"value": 2000.0, "plus_minus": 200.0}
+    }));
+    let p = ActuatorParams::parse(&good, "sheet.json").expect("valid");
+    let d = p.datasheet.expect("read");
+    let (lo, hi) = d.sensor_delay_s.expect("read").band_from_zero();
+    assert!(lo == 0.0 && (hi - 1.3e-4).abs() < 1e-15, "{lo} {hi}");
+    assert_eq!(d.sensor_bandwidth_hz, None);
+    let again = ActuatorParams::parse(&p.to_json_pretty(), "again").expect("round trip");
+    assert_eq!(again.datasheet, p.datasheet);
+    // Without the section nothing is written: a file without priors reads as before.
+    assert!(!actuator_params::paper_defaults()
+        .to_json_pretty()
+        .contains("datasheet"));
+}

@@ -182,6 +182,9 @@ pub struct Diagnosis {
     /// The warning for them, repeated next to the verdict (`None`: every loop measured, or a
     /// file that does not record where its masses were measured).
     pub unmeasured_loops_warning: Option<String>,
+    /// The parameter file's datasheet values and the candidate parameter each bounds
+    /// (`maglab_model::priors`; empty without a `datasheet` section).
+    pub datasheet_priors: Vec<serde_json::Value>,
     /// What the coil-current channel said of the amplifier, when the dataset records it
     /// ([`super::coil_current`]); then every candidate below was fitted on the measured current.
     pub coil_current: Option<super::coil_current::AmplifierJudgement>,

@@ -10,16 +10,23 @@
 //! Identifying with the model the diagnosis uses means an identified file is exactly what the
 //! diagnosis' refit would give on the same data: an identification error is never taken for an
 //! effect.
+//!
+//! **Instruments from a datasheet.** When the base file's `datasheet` gives the sensor's or the
+//! amplifier's bandwidth (`maglab_model::priors`), that instrument is fitted with the rod, its
+//! parameters within the datasheet's bands: a sensor or amplifier lag is then not absorbed into
+//! `R_eddy`, `ξ`, `f0` (which the firmware's model, without the instrument, would carry). The
+//! amplifier is not modelled when the coil current is measured: it is outside the chain then.
 
 use maglab_dataset::data::Measurement;
 use maglab_dataset::dataset_info::DatasetInfo;
 use maglab_dataset::CurrentBetweenSamples;
-use maglab_model::candidates::{Candidate, IDENTIFICATION_RANGE};
+use maglab_model::candidates::{
+    effect_parameters, model_parameters, Candidate, COMMON_PARAMETER_COUNT, IDENTIFICATION_RANGE,
+};
 use maglab_model::experiments::{
     describe, experiment_data, nominal_for_data, ExperimentInfo, QUASI_STATIC_BELOW_HZ,
 };
 use maglab_model::fit::{FitSettings, ModelSetup};
-use maglab_model::model::{Electro, Mech};
 use maglab_model::nuisance::{estimate_nuisances, lead_in_memory, NuisanceEstimate};
 use maglab_model::plan_fit::PlanFitter;
 use maglab_model::residual::{offset_of, pooled_rms, systematic};
@@ -61,6 +68,10 @@ pub struct DynamicIdentification {
     /// Highest fundamental of the fitted experiments, Hz (see
     /// [`IdentificationOptions::fit_band_fraction`]).
     pub fitted_up_to_hz: f64,
+    /// The instruments modelled with the rod because the base file's datasheet gives their
+    /// bandwidth (`maglab_model::priors::Priors::instruments`): each parameter's report name
+    /// and fitted value.
+    pub instruments: Vec<(String, f64)>,
     /// Electromagnetic substeps per sample of the fit's model ([`IdentificationOptions::substeps`]).
     pub substeps: usize,
 }
@@ -222,6 +233,18 @@ pub fn identify_dynamics(
         } else {
             &[CurrentBetweenSamples::Linear, CurrentBetweenSamples::Hold]
         },
+        instruments: Candidate {
+            effects: nominal.priors.instruments(options.measured_current_input),
+        },
+        instrument_starts: nominal
+            .priors
+            .instruments(options.measured_current_input)
+            .into_iter()
+            .flat_map(|e| {
+                let specs = effect_parameters(e, &nominal);
+                nominal.priors.start(e, &specs)
+            })
+            .collect(),
     };
     let first_starts: Vec<[f64; 3]> = std::iter::once(base)
         .chain(starts.iter().copied())
@@ -250,6 +273,14 @@ pub fn identify_dynamics(
     let v = &chosen.fit.fitted.values;
     Ok(DynamicIdentification {
         fitted_up_to_hz,
+        instruments: chosen
+            .fit
+            .fitted
+            .report_names()
+            .into_iter()
+            .zip(v.iter().copied())
+            .skip(COMMON_PARAMETER_COUNT)
+            .collect(),
         substeps,
         eddy_resistance_ohm: v[0],
         damping_ratio: v[1],
@@ -358,6 +389,10 @@ struct Passes<'a> {
     settings: &'a FitSettings,
     /// The current between samples the nuisance estimate may choose.
     interpolations: &'a [CurrentBetweenSamples],
+    /// The instruments fitted with the rod (no effect: the nominal model) and where their
+    /// parameters start.
+    instruments: Candidate,
+    instrument_starts: Vec<f64>,
 }
 
 /// One pass's result.
@@ -374,8 +409,12 @@ impl Passes<'_> {
     /// One pass: the nuisances estimated with the model of `constants`, then the fit from
     /// `fit_starts` with them.
     fn run(&self, constants: [f64; 3], fit_starts: &[[f64; 3]]) -> Pass {
-        let electro = Electro::nominal(constants[0]);
-        let mech = Mech::nominal(constants[1], constants[2]);
+        // The nuisances are estimated with the instruments at their datasheet values: a sensor
+        // lag left out of that model would be taken up by the channel skew and the current
+        // held between samples, and the fit could not give it back.
+        let mut values = vec![constants[0], constants[1], constants[2], 0.0];
+        values.extend(&self.instrument_starts);
+        let (electro, mech) = model_parameters(&self.instruments, &values);
         // The first experiment, when it continues the record before it, starts from its memory.
         let mut lead_ins = vec![None; self.measurements.len()];
         lead_ins[0] = self.lead_in.map(|record| {
@@ -415,10 +454,14 @@ impl Passes<'_> {
             settings: self.settings,
         };
         let fit = fitter.fit(
-            &Candidate::nominal(),
+            &self.instruments,
             &fit_starts
                 .iter()
-                .map(|s| vec![s[0], s[1], s[2], skew])
+                .map(|s| {
+                    let mut v = vec![s[0], s[1], s[2], skew];
+                    v.extend(&self.instrument_starts);
+                    v
+                })
                 .collect::<Vec<_>>(),
         );
         Pass {

@@ -120,6 +120,11 @@ impl DynamicStage<'_> {
             "systematic_residual_m": id.systematic_m,
             "model_evaluations": id.evaluations,
             "fitted_up_to_hz": id.fitted_up_to_hz,
+            "instruments_fitted_with_the_rod": id
+                .instruments
+                .iter()
+                .map(|(name, v)| (name.clone(), serde_json::json!(v)))
+                .collect::<serde_json::Map<_, _>>(),
             "substeps": id.substeps,
         });
         fit.attach_refined(

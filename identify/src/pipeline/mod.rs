@@ -255,6 +255,17 @@ impl IdentifyError {
 /// The provenance entry of the amplifier judged on the coil-current channel.
 pub const AMPLIFIER_KEY: &str = "coil_current";
 
+/// The provenance entry of the datasheet priors the fits used (`maglab_model::priors`).
+pub const PRIORS_KEY: &str = "datasheet_priors";
+
+/// The base file's datasheet values and what each bounds (empty without a datasheet).
+pub fn datasheet_priors(base: &ActuatorParams) -> Vec<maglab_model::priors::PriorUse> {
+    let nominal = maglab_model::model::Nominal::from_params(base);
+    nominal
+        .priors
+        .uses(&|e| maglab_model::candidates::library_parameters(e, &nominal))
+}
+
 /// Identifies `dataset` from `base` (see the module docs); `progress` reports the phase-lag
 /// scheme's grid (called from worker threads).
 pub fn identify(
@@ -339,6 +350,13 @@ pub fn identify(
                           the current in its coil, the amplifier from the command against it",
                 "judgement": amplifier,
             }),
+        );
+    }
+    let priors = datasheet_priors(base.params);
+    if !priors.is_empty() {
+        params.provenance.details.insert(
+            PRIORS_KEY.into(),
+            serde_json::Value::Array(priors.iter().map(|u| u.to_json()).collect()),
         );
     }
     if let Some(measured) = crate::coverage::measured_loops(&quasi_static, &split.dynamic) {
