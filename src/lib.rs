@@ -11,7 +11,8 @@
 //! * [`params`]: the actuator parameters baked in at build time from the JSON file.
 //! * [`trajectory`]: the Van der Pol desired trajectory integrated on the chip.
 //! * [`sensor`]: the displacement sample of every tick, scaled and checked.
-//! * [`programme`]: the identification programme the firmware plays in measurement mode.
+//! * [`programme`]: the identification programme the firmware plays in measurement mode, and
+//!   [`coil_heat`] the coil temperature estimate its pauses follow.
 //! * [`record`]: the measurement record the firmware streams while it plays it (queue, batches).
 //! * [`link`]: the frames of the lock-step plant link of the virtual bench (`docs/hil.md`).
 //! * [`sqrt`]: the square root, on the FPU's `VSQRT.F32` on the Cortex-M4F.
@@ -30,6 +31,7 @@
 extern crate std;
 
 pub mod board;
+pub mod coil_heat;
 pub mod inverse;
 pub mod link;
 pub mod model;

@@ -146,6 +146,18 @@ pub struct Amplifier {
     pub coil_inductance_h: f32,
 }
 
+/// The coil's lumped thermal model and the rise the measurement programme keeps under (the
+/// parameter file's `coil_thermal` section; `crate::coil_heat`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoilThermal {
+    /// Winding to ambient, K/W.
+    pub thermal_resistance_k_per_w: f32,
+    /// Thermal time constant of the winding, s.
+    pub time_constant_s: f32,
+    /// Largest rise the measurement programme may cause, K.
+    pub max_rise_k: f32,
+}
+
 /// The displacement sensor (see the parameter file's `sensor` section).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sensor {
@@ -191,6 +203,8 @@ pub struct ActuatorParameters {
     pub sensor: Sensor,
     /// Desired-trajectory settings.
     pub trajectory: Trajectory,
+    /// The coil's thermal budget for the measurement programme (`None`: no pauses).
+    pub coil_thermal: Option<CoilThermal>,
 }
 
 include!(concat!(env!("OUT_DIR"), "/baked_params.rs"));
@@ -257,6 +271,7 @@ impl ActuatorParameters {
             displacement_min_m: 0.0,
             displacement_max_m: 0.0,
         },
+        coil_thermal: None,
     };
 }
 
@@ -361,6 +376,26 @@ mod file_mapping {
     impl<const N: usize> Widen<Option<Vec<f64>>> for Option<[f32; N]> {
         fn widen(&self) -> Option<Vec<f64>> {
             self.as_ref().map(Widen::widen)
+        }
+    }
+
+    impl Narrow<Option<super::CoilThermal>> for Option<actuator_params::CoilThermal> {
+        fn narrow(&self, _: &str, _: &str) -> Result<Option<super::CoilThermal>, ParamsError> {
+            Ok(self.map(|t| super::CoilThermal {
+                thermal_resistance_k_per_w: t.thermal_resistance_k_per_w as f32,
+                time_constant_s: t.time_constant_s as f32,
+                max_rise_k: t.max_rise_k as f32,
+            }))
+        }
+    }
+
+    impl Widen<Option<actuator_params::CoilThermal>> for Option<super::CoilThermal> {
+        fn widen(&self) -> Option<actuator_params::CoilThermal> {
+            self.map(|t| actuator_params::CoilThermal {
+                thermal_resistance_k_per_w: t.thermal_resistance_k_per_w as f64,
+                time_constant_s: t.time_constant_s as f64,
+                max_rise_k: t.max_rise_k as f64,
+            })
         }
     }
 

@@ -17,6 +17,20 @@
 //!    [`SINE_AMPLITUDES_A`] around [`SINE_BIAS_A`], [`SINE_DURATION_S`] or [`SINE_MIN_PERIODS`]
 //!    periods each, whichever is longer.
 //!
+//! **Coil heating.** With the parameter file's `coil_thermal` section
+//! ([`IdentificationProgramme::with_coil_heat`]) the programme keeps the winding's temperature
+//! rise, as [`crate::coil_heat`] estimates it from the commanded currents, at or below
+//! `max_rise_k`: before each stretch it could not finish under the limit it pauses, unrecorded,
+//! at a current that cools the coil, until the stretch fits. Pauses are taken only where they
+//! leave the rod's state as it was: before an experiment's conditioning (which rebuilds the
+//! memory), and inside the FORC sweep at the top of a reversal curve — the top is the largest
+//! input since the sweep's bottom, so a dip to the pause current (not below the bottom) and back
+//! is wiped out on the return (Preisach's wiping-out property, paper Section 2) and the next
+//! curve starts from the same memory. The recorded currents are the same bit for bit with and
+//! without pauses; the order stays FORC first (the masses are read from the coolest coil). The
+//! bound each stretch is checked against, and why a hold ends, are in [`crate::coil_heat`]; a
+//! stretch that cannot fit even from a cold coil is refused ([`ProgrammeError::TooHot`]).
+//!
 //! The same generator feeds both measurement paths: the virtual bench streams it from the host
 //! (`cargo xtask hil --measure`) and the firmware plays it itself (NUCLEO measurement image,
 //! `firmware-hil mode=measure-local`), so both record the same currents.
@@ -24,7 +38,9 @@
 //! Cost per tick: a few compares, a multiply-add and (sines) one `sinf` — under 100 instructions
 //! beside the conditioning's ~15. No allocation, no panic path.
 
+use crate::coil_heat::{CoilHeat, CoilHeatError, CoilHeatState};
 use crate::inverse::{Conditioning, ConditioningError, ConditioningState, OutputLimiter, Sweep};
+use crate::params::ActuatorParameters;
 use crate::preisach::{PreisachMeasure, LEVELS};
 
 /// Speed of the FORC sweep: that of a full-range triangle at this rate, Hz.
@@ -111,6 +127,17 @@ pub enum ProgrammeError {
     },
     /// A non-finite or non-positive setting (coil factor, rate, grid range), named.
     Invalid(&'static str),
+    /// Invalid thermal constants (see [`CoilHeatError`]).
+    CoilHeat(CoilHeatError),
+    /// A stretch of experiment `experiment` can heat the coil by up to `heating_k` even from
+    /// cold, more than `coil_thermal.max_rise_k` allows (lower the current limit or raise the
+    /// limit).
+    TooHot {
+        /// The experiment.
+        experiment: usize,
+        /// The stretch's bound, K (with the estimate's lag and the pause's own heating).
+        heating_k: f32,
+    },
 }
 
 /// The programme's coefficients (`&self`; its progress is a [`ProgrammeState`]).
@@ -125,6 +152,7 @@ pub struct IdentificationProgramme {
     /// The sweep's overshoot beyond the range, fraction of it.
     overdrive: f32,
     coil_factor_per_m: f32,
+    sample_rate_hz: f32,
     cells_per_tick: f32,
     /// Recorded ticks of the FORC sweep (computed once).
     forc_ticks: u32,
@@ -133,6 +161,60 @@ pub struct IdentificationProgramme {
     /// Phase step per tick of each sine frequency, turns × 2³² (exact wrap-around: the phase
     /// error after `n` ticks is at most `n·2⁻³³` turn).
     sine_step_q32: [u32; SINE_FREQUENCIES_HZ.len()],
+    /// The coil's heat budget (`None`: no pauses).
+    heat: Option<HeatBudget>,
+}
+
+/// What the pauses need, computed once by [`IdentificationProgramme::with_coil_heat`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct HeatBudget {
+    heat: CoilHeat,
+    /// Ramp step into and out of a pause, A per tick (the FORC sweep's speed).
+    ramp_step_a: f32,
+    /// Current held in a pause inside the FORC sweep, A: 0 A, or the sweep's bottom when that
+    /// lies above 0 A (never below the bottom: the dip must be wiped out).
+    forc_hold_a: f32,
+    /// Bound on what reversal curve `j` (1-based; index `j − 1`) adds, with a ramp up from a
+    /// pause before it and down to one after it, K.
+    forc_curve_heating_k: [f32; LEVELS],
+    /// Bound on what experiment `k`'s conditioning (from any current), its stretch up to its
+    /// first pause point (the FORC sweep's first top; a sine's end) and the ramp to a pause
+    /// after it add, K.
+    experiment_heating_k: [f32; EXPERIMENTS],
+}
+
+/// A pause while the coil cools (unrecorded ticks).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Pause {
+    /// The current the ramp is at, A.
+    current_a: f32,
+    /// The current held, A.
+    hold_a: f32,
+    /// The current to ramp back to (`None`: the next experiment's conditioning follows).
+    return_a: Option<f32>,
+    /// What the stretch after the pause may add, K: the hold ends when it fits.
+    heating_k: f32,
+    phase: PausePhase,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum PausePhase {
+    Down,
+    Hold,
+    Up,
+    Done,
+}
+
+/// Moves `current_a` towards `target_a` by at most `step_a`; whether it arrived.
+fn ramp(current_a: &mut f32, target_a: f32, step_a: f32) -> bool {
+    let gap = target_a - *current_a;
+    if libm::fabsf(gap) <= step_a {
+        *current_a = target_a;
+        true
+    } else {
+        *current_a += if gap > 0.0 { step_a } else { -step_a };
+        false
+    }
 }
 
 /// Where a programme stands.
@@ -149,6 +231,10 @@ pub struct ProgrammeState {
     segment_steps: u32,
     last_a: f32,
     done: bool,
+    /// The coil's estimated temperature rise (with a heat budget).
+    heat: CoilHeatState,
+    /// A pause under way.
+    pause: Option<Pause>,
 }
 
 /// One tick of the programme.
@@ -166,6 +252,27 @@ impl ProgrammeState {
     /// Whether the programme has ended.
     pub fn done(&self) -> bool {
         self.done
+    }
+
+    /// The coil's estimated temperature rise, K (0 without a heat budget).
+    pub fn coil_rise_k(&self) -> f32 {
+        self.heat.rise_k()
+    }
+
+    /// A state at the start of experiment `experiment`'s recorded ticks.
+    fn at(experiment: usize) -> Self {
+        ProgrammeState {
+            experiment,
+            conditioning: None,
+            sample: 0,
+            segment: 0,
+            segment_tick: 0,
+            segment_steps: 0,
+            last_a: 0.0,
+            done: false,
+            heat: CoilHeatState::default(),
+            pause: None,
+        }
     }
 }
 
@@ -238,6 +345,7 @@ impl IdentificationProgramme {
             cell_width_a_per_m: (sweep_hi - sweep_lo) / LEVELS as f32,
             overdrive,
             coil_factor_per_m,
+            sample_rate_hz,
             cells_per_tick,
             forc_ticks: 0,
             sine_ticks: SINE_FREQUENCIES_HZ.map(|f| {
@@ -253,12 +361,114 @@ impl IdentificationProgramme {
                 let turns = f as f64 / sample_rate_hz as f64;
                 libm::round((turns - libm::floor(turns)) * 4_294_967_296.0) as u32
             }),
+            heat: None,
         };
         programme.forc_ticks = 1
             + (1..FORC_WAYPOINTS)
                 .map(|i| programme.segment_ticks(i))
                 .sum::<u32>();
         Ok(programme)
+    }
+
+    /// The programme of a parameter set: its coil factor, grid, reach and rate, and the coil's
+    /// heat budget when the set has a `coil_thermal` section ([`Self::with_coil_heat`]).
+    pub fn for_parameters(
+        limiter: &OutputLimiter,
+        p: &ActuatorParameters,
+        measure: &PreisachMeasure,
+    ) -> Result<Self, ProgrammeError> {
+        let programme = Self::new(
+            limiter,
+            p.actuator.coil_factor_per_m,
+            measure,
+            p.preisach.reach_a_per_m,
+            p.control.sample_rate_hz,
+        )?;
+        match CoilHeat::from_parameters(p) {
+            None => Ok(programme),
+            Some(heat) => programme.with_coil_heat(heat.map_err(ProgrammeError::CoilHeat)?),
+        }
+    }
+
+    /// This programme with pauses that keep the coil's estimated rise at or below `heat`'s limit
+    /// (module docs). Refused when a stretch between pause points could exceed it from a cold
+    /// coil.
+    pub fn with_coil_heat(mut self, heat: CoilHeat) -> Result<Self, ProgrammeError> {
+        let clamp = |i: f32| i.max(-self.limit_a).min(self.limit_a);
+        let ramp_step_a = self.cells_per_tick * self.cell_width_a_per_m / self.coil_factor_per_m;
+        let ramp_ticks = |from_a: f32| libm::ceilf(libm::fabsf(from_a) / ramp_step_a) as u32 + 1;
+        let bottom_a = clamp(self.forc_current_a(forc_waypoint(0, self.overdrive)));
+        let top_a = clamp(self.forc_current_a(forc_waypoint(1, self.overdrive)));
+        let forc_hold_a = 0.0f32.max(bottom_a).min(top_a);
+        // A ramp between the top and 0 A, before and after a curve (module docs of `coil_heat`:
+        // one term per part).
+        let top_ramp_k = heat.ramp_heating_k(top_a, 0.0, ramp_ticks(top_a));
+        // What a stretch can reach from a cold coil, with the pause's own heating and the lag.
+        let from_cold = |heating_k: f32, hold_a: f32| {
+            heat.lag_margin_k() + heating_k + heat.steady_rise_k(hold_a)
+        };
+        let mut forc_curve_heating_k = [0.0f32; LEVELS];
+        for (j0, bound) in forc_curve_heating_k.iter_mut().enumerate() {
+            let i = 2 * (j0 + 1);
+            let line_a = clamp(self.forc_current_a(forc_waypoint(i, self.overdrive)));
+            let down_k = heat.ramp_heating_k(top_a, line_a, self.segment_ticks(i));
+            let up_k = heat.ramp_heating_k(line_a, top_a, self.segment_ticks(i + 1));
+            *bound = 2.0 * top_ramp_k + down_k + up_k;
+            let reach_k = from_cold(*bound, forc_hold_a);
+            if reach_k >= heat.max_rise_k() {
+                return Err(ProgrammeError::TooHot {
+                    experiment: 0,
+                    heating_k: reach_k,
+                });
+            }
+        }
+        let mut experiment_heating_k = [0.0f32; EXPERIMENTS];
+        for (k, bound) in experiment_heating_k.iter_mut().enumerate() {
+            let Some(e) = self.experiment(k) else { break };
+            let first = self.first_current_a(k);
+            let conditioning_ticks = [-self.limit_a, 0.0, self.limit_a]
+                .iter()
+                .map(|&from| self.conditioning.ticks(from, first))
+                .max()
+                .unwrap_or(0);
+            // The stretch after the conditioning, and the current it ends on.
+            let (head_k, end_a) = match e.kind {
+                ExperimentKind::Forc { .. } => (
+                    heat.ramp_heating_k(bottom_a, top_a, 1 + self.segment_ticks(1)),
+                    top_a,
+                ),
+                ExperimentKind::Sine {
+                    frequency_hz,
+                    amplitude_a,
+                    bias_a,
+                } => {
+                    let omega = core::f32::consts::TAU * frequency_hz / self.sample_rate_hz;
+                    let peak_a = clamp(libm::fabsf(bias_a) + amplitude_a);
+                    (
+                        heat.sine_heating_k(bias_a, amplitude_a, omega, e.ticks),
+                        peak_a,
+                    )
+                }
+            };
+            *bound = heat.heating_k(self.limit_a, conditioning_ticks)
+                + head_k
+                + heat.ramp_heating_k(end_a, 0.0, ramp_ticks(end_a));
+            let reach_k = from_cold(*bound, 0.0);
+            if reach_k >= heat.max_rise_k() {
+                return Err(ProgrammeError::TooHot {
+                    experiment: k,
+                    heating_k: reach_k,
+                });
+            }
+        }
+        self.heat = Some(HeatBudget {
+            heat,
+            ramp_step_a,
+            forc_hold_a,
+            forc_curve_heating_k,
+            experiment_heating_k,
+        });
+        Ok(self)
     }
 
     /// Ticks of FORC segment `i` (from waypoint `i − 1` to `i`).
@@ -350,35 +560,31 @@ impl IdentificationProgramme {
 
     /// The first current of experiment `k`, as the limiter will let it onto the coil.
     fn first_current_a(&self, k: usize) -> f32 {
-        let s = ProgrammeState {
-            experiment: k,
-            conditioning: None,
-            sample: 0,
-            segment: 0,
-            segment_tick: 0,
-            segment_steps: 0,
-            last_a: 0.0,
-            done: false,
-        };
-        self.current_a(k, &s).max(-self.limit_a).min(self.limit_a)
+        self.current_a(k, &ProgrammeState::at(k))
+            .max(-self.limit_a)
+            .min(self.limit_a)
     }
 
     /// A programme starting from `from_a` on the coil (0 A after power-up).
     pub fn start(&self, from_a: f32) -> ProgrammeState {
         ProgrammeState {
-            experiment: 0,
             conditioning: Some(self.conditioning.start(from_a, self.first_current_a(0))),
-            sample: 0,
-            segment: 0,
-            segment_tick: 0,
-            segment_steps: 0,
             last_a: from_a,
-            done: false,
+            ..ProgrammeState::at(0)
         }
     }
 
-    /// Ticks of the whole programme from `from_a`, conditioning included.
+    /// Ticks of the whole programme from `from_a`, conditioning and pauses included (with a
+    /// heat budget the pauses are counted by playing the programme: ~100 instructions a tick).
     pub fn total_ticks(&self, from_a: f32) -> u32 {
+        if self.heat.is_some() {
+            let mut s = self.start(from_a);
+            let mut n = 0u32;
+            while self.step(&mut s).is_some() {
+                n = n.saturating_add(1);
+            }
+            return n;
+        }
         let mut last = from_a;
         let mut n = 0u32;
         for k in 0..EXPERIMENTS {
@@ -388,14 +594,11 @@ impl IdentificationProgramme {
                 .saturating_add(self.conditioning.ticks(last, first))
                 .saturating_add(e.ticks);
             let end = ProgrammeState {
-                experiment: k,
-                conditioning: None,
                 sample: e.ticks.saturating_sub(1),
                 segment: FORC_WAYPOINTS - 1,
                 segment_tick: self.segment_ticks(FORC_WAYPOINTS - 1),
                 segment_steps: self.segment_ticks(FORC_WAYPOINTS - 1),
-                last_a: 0.0,
-                done: false,
+                ..ProgrammeState::at(k)
             };
             last = self.current_a(k, &end).max(-self.limit_a).min(self.limit_a);
         }
@@ -405,8 +608,98 @@ impl IdentificationProgramme {
     /// The next tick (`None` once the programme has ended; the caller then ramps to 0 A).
     #[inline]
     pub fn step(&self, s: &mut ProgrammeState) -> Option<ProgrammeTick> {
+        let tick = self.next_tick(s)?;
+        if let Some(b) = &self.heat {
+            let applied_a = tick.current_a.max(-self.limit_a).min(self.limit_a);
+            b.heat.step(&mut s.heat, applied_a);
+        }
+        Some(tick)
+    }
+
+    /// The next tick of a pause under way (`None`: it has ended; the conditioning it was taken
+    /// before has been started).
+    fn pause_tick(&self, s: &mut ProgrammeState) -> Option<f32> {
+        let (Some(b), Some(p)) = (&self.heat, &mut s.pause) else {
+            return None;
+        };
+        loop {
+            match p.phase {
+                PausePhase::Down => {
+                    if ramp(&mut p.current_a, p.hold_a, b.ramp_step_a) {
+                        p.phase = PausePhase::Hold;
+                    }
+                    return Some(p.current_a);
+                }
+                PausePhase::Hold => {
+                    if !b.heat.fits(&s.heat, p.heating_k) {
+                        return Some(p.current_a);
+                    }
+                    p.phase = if p.return_a.is_some() {
+                        PausePhase::Up
+                    } else {
+                        PausePhase::Done
+                    };
+                }
+                PausePhase::Up => {
+                    let target = p.return_a.unwrap_or(p.current_a);
+                    if ramp(&mut p.current_a, target, b.ramp_step_a) {
+                        p.phase = PausePhase::Done;
+                    }
+                    return Some(p.current_a);
+                }
+                PausePhase::Done => {
+                    let from_a = p.current_a;
+                    let between_experiments = p.return_a.is_none();
+                    s.pause = None;
+                    s.last_a = from_a;
+                    if between_experiments {
+                        s.conditioning = Some(
+                            self.conditioning
+                                .start(from_a, self.first_current_a(s.experiment)),
+                        );
+                    }
+                    return None;
+                }
+            }
+        }
+    }
+
+    /// A pause at `hold_a` when a stretch adding `heating_k` would not fit now (module docs).
+    fn pause_if_hot(
+        &self,
+        s: &ProgrammeState,
+        heating_k: impl Fn(&HeatBudget) -> f32,
+        hold_a: f32,
+        return_a: Option<f32>,
+    ) -> Option<Pause> {
+        let b = self.heat.as_ref()?;
+        let heating_k = heating_k(b);
+        if b.heat.fits(&s.heat, heating_k) {
+            return None;
+        }
+        Some(Pause {
+            current_a: s.last_a,
+            hold_a,
+            return_a,
+            heating_k,
+            phase: PausePhase::Down,
+        })
+    }
+
+    /// The next tick, before the heat estimate accounts for it.
+    fn next_tick(&self, s: &mut ProgrammeState) -> Option<ProgrammeTick> {
         if s.done {
             return None;
+        }
+        if s.pause.is_some() {
+            if let Some(current_a) = self.pause_tick(s) {
+                s.last_a = current_a;
+                return Some(ProgrammeTick {
+                    current_a,
+                    experiment: s.experiment,
+                    sample: None,
+                });
+            }
         }
         if let Some(c) = &mut s.conditioning {
             if !c.done() {
@@ -437,6 +730,23 @@ impl IdentificationProgramme {
                 s.segment_tick = 1;
                 if s.segment < FORC_WAYPOINTS {
                     s.segment_steps = self.segment_ticks(s.segment);
+                    // At the top of a curve (segment `2j` goes down to line `L − j`): a pause
+                    // point.
+                    if s.segment % 2 == 0 {
+                        let j0 = s.segment / 2 - 1;
+                        let hold_a = self.heat.as_ref().map_or(0.0, |b| b.forc_hold_a);
+                        s.pause = self.pause_if_hot(
+                            s,
+                            |b| {
+                                b.forc_curve_heating_k
+                                    .get(j0)
+                                    .copied()
+                                    .unwrap_or(f32::INFINITY)
+                            },
+                            hold_a,
+                            Some(s.last_a),
+                        );
+                    }
                 }
             }
         }
@@ -449,10 +759,24 @@ impl IdentificationProgramme {
             if s.experiment >= EXPERIMENTS {
                 s.done = true;
             } else {
-                s.conditioning = Some(
-                    self.conditioning
-                        .start(s.last_a, self.first_current_a(s.experiment)),
+                let k = s.experiment;
+                s.pause = self.pause_if_hot(
+                    s,
+                    |b| {
+                        b.experiment_heating_k
+                            .get(k)
+                            .copied()
+                            .unwrap_or(f32::INFINITY)
+                    },
+                    0.0,
+                    None,
                 );
+                if s.pause.is_none() {
+                    s.conditioning = Some(
+                        self.conditioning
+                            .start(s.last_a, self.first_current_a(s.experiment)),
+                    );
+                }
             }
         }
         Some(tick)
@@ -568,6 +892,116 @@ mod tests {
             assert_eq!(count, prog.experiment(k).unwrap().ticks, "experiment {k}");
         }
         assert!(prog.experiment(EXPERIMENTS).is_none());
+    }
+
+    /// The baked programme with a heat budget: 1 K/W on the 5.8 Ω coil, `τ`, the limit.
+    fn programme_with_heat(
+        time_constant_s: f32,
+        max_rise_k: f32,
+    ) -> Result<IdentificationProgramme, ProgrammeError> {
+        let mut p = BAKED_PARAMETERS;
+        p.amplifier.coil_resistance_ohm = 5.8;
+        p.coil_thermal = Some(crate::params::CoilThermal {
+            thermal_resistance_k_per_w: 1.0,
+            time_constant_s,
+            max_rise_k,
+        });
+        let limiter = OutputLimiter::new(&p.control).unwrap();
+        IdentificationProgramme::for_parameters(&limiter, &p, &BAKED_MEASURE)
+    }
+
+    /// Every tick of a programme: `(experiment, recorded tick, current)`, and the state after it.
+    fn play(prog: &IdentificationProgramme) -> Vec<(ProgrammeTick, f32)> {
+        let mut s = prog.start(0.0);
+        let mut out = Vec::new();
+        while let Some(t) = prog.step(&mut s) {
+            out.push((t, s.coil_rise_k()));
+            assert!(out.len() < 10_000_000, "the programme must end");
+        }
+        out
+    }
+
+    #[test]
+    fn pauses_keep_the_coil_under_its_limit_and_leave_the_recorded_currents_unchanged() {
+        let plain = play(&programme());
+        let prog = programme_with_heat(2.0, 6.0).unwrap();
+        let paused = play(&prog);
+        // The recorded ticks are the same, bit for bit, in the same order.
+        let recorded = |ticks: &[(ProgrammeTick, f32)]| -> Vec<(usize, u32, u32)> {
+            ticks
+                .iter()
+                .filter_map(|(t, _)| t.sample.map(|k| (t.experiment, k, t.current_a.to_bits())))
+                .collect()
+        };
+        assert_eq!(recorded(&plain), recorded(&paused));
+        assert_eq!(paused.len() as u32, prog.total_ticks(0.0));
+        // The heat model, stepped exactly tick by tick in f64 (τ ΔT' = k I² − ΔT, k = 5.8 K/A²):
+        // without pauses it goes beyond 10 K; with them it stays at or below.
+        let exact_peak = |ticks: &[(ProgrammeTick, f32)]| {
+            let decay = (-1.0 / (2.0 * 10_000.0f64)).exp();
+            let mut rise = 0.0f64;
+            let mut peak = 0.0f64;
+            for (t, _) in ticks {
+                let i = t.current_a.clamp(-2.0, 2.0) as f64;
+                rise = 5.8 * i * i + (rise - 5.8 * i * i) * decay;
+                peak = peak.max(rise);
+            }
+            peak
+        };
+        let (without, with) = (exact_peak(&plain), exact_peak(&paused));
+        std::println!(
+            "peak rise without pauses {without:.2} K, with {with:.2} K; {} ticks instead of {}",
+            paused.len(),
+            plain.len()
+        );
+        assert!(without > 7.0, "{without}");
+        assert!(with <= 6.0, "{with}");
+        let estimate_peak = paused.iter().map(|(_, r)| *r).fold(0.0f32, f32::max);
+        assert!(estimate_peak <= 6.0, "{estimate_peak}");
+        // Pauses inside the FORC sweep never go below its bottom (the dip must be wiped out).
+        let forc_bottom = plain
+            .iter()
+            .filter(|(t, _)| t.experiment == 0 && t.sample.is_some())
+            .map(|(t, _)| t.current_a.max(-2.0))
+            .fold(f32::INFINITY, f32::min);
+        let first_forc = paused
+            .iter()
+            .position(|(t, _)| t.experiment == 0 && t.sample.is_some())
+            .unwrap();
+        let last_forc = paused
+            .iter()
+            .rposition(|(t, _)| t.experiment == 0 && t.sample.is_some())
+            .unwrap();
+        let inside: Vec<f32> = paused[first_forc..=last_forc]
+            .iter()
+            .filter(|(t, _)| t.sample.is_none())
+            .map(|(t, _)| t.current_a)
+            .collect();
+        assert!(!inside.is_empty(), "the sweep pauses at least once");
+        assert!(inside.iter().all(|&i| i >= forc_bottom - 1e-6));
+    }
+
+    #[test]
+    fn a_budget_no_stretch_can_meet_is_refused_and_no_section_means_no_pauses() {
+        let e = programme_with_heat(2.0, 2.0);
+        assert!(
+            matches!(e, Err(ProgrammeError::TooHot { experiment: 0, heating_k }) if heating_k > 2.0),
+            "{e:?}"
+        );
+        let e = programme_with_heat(-1.0, 10.0);
+        assert_eq!(
+            e,
+            Err(ProgrammeError::CoilHeat(CoilHeatError(
+                "coil_thermal.time_constant_s"
+            )))
+        );
+        let p = &BAKED_PARAMETERS;
+        assert!(p.coil_thermal.is_none());
+        let limiter = OutputLimiter::new(&p.control).unwrap();
+        assert_eq!(
+            IdentificationProgramme::for_parameters(&limiter, p, &BAKED_MEASURE),
+            Ok(programme())
+        );
     }
 
     #[test]

@@ -13,8 +13,9 @@
 //! (default 0 and 2);
 //! `COIL_MONITOR_NOISE_A=1e-4` another monitor (no quantization).
 
-use maglab_identify::experiments::ClassifyOptions;
-use maglab_identify::pipeline::{identify, Base, IdentifyOptions, RecordedDataset};
+mod common;
+
+use common::{constant_errors, pct, BenchFolder};
 use maglab_plant::bench::{self, BenchSettings};
 use maglab_plant::{CurrentMonitor, Effect};
 
@@ -34,35 +35,17 @@ fn identified(effects: &[Effect], channel: bool, tag: &str) -> ([f64; 3], Option
         &settings,
     )
     .expect("rig");
-    let dir = std::env::temp_dir().join(format!(
-        "maglab-coil-current-{tag}-{channel}-{}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    bench::write_dataset(&dir, &recordings).expect("write");
-    let dataset = RecordedDataset::load(&dir, &ClassifyOptions::default()).expect("load");
-    let id = identify(
-        &dataset,
-        Base {
-            params: &params,
-            name: "default parameters",
-        },
-        &IdentifyOptions::default(),
-        &|_, _, _| {},
+    let folder = BenchFolder::write(
+        &format!("coil-current-{tag}-{channel}"),
+        &recordings,
+        true,
+        "COIL_KEEP",
+    );
+    let id = folder.identify(&params, "default parameters");
+    (
+        constant_errors(&id.params, &params),
+        folder.dataset.amplifier.as_ref().map(|j| j.amplifier_named),
     )
-    .expect("identify");
-    if std::env::var("COIL_KEEP").is_ok() {
-        println!("kept {}", dir.display());
-    } else {
-        let _ = std::fs::remove_dir_all(&dir);
-    }
-    let (a, t) = (&id.params.actuator, &params.actuator);
-    let errors = [
-        a.eddy_resistance_ohm / t.eddy_resistance_ohm - 1.0,
-        a.damping_ratio / t.damping_ratio - 1.0,
-        a.resonance_hz / t.resonance_hz - 1.0,
-    ];
-    (errors, dataset.amplifier.map(|j| j.amplifier_named))
 }
 
 /// The current monitor: [`CurrentMonitor::TYPICAL`], or `COIL_MONITOR_NOISE_A` of noise without
@@ -76,15 +59,6 @@ fn monitor() -> CurrentMonitor {
 
 fn amplifier(form: usize) -> Effect {
     Effect::parse(&format!("amplifier_bandwidth:form={form}")).expect("the amplifier")
-}
-
-fn pct(e: [f64; 3]) -> String {
-    format!(
-        "R_eddy {:+.1} %, xi {:+.1} %, f0 {:+.1} %",
-        100.0 * e[0],
-        100.0 * e[1],
-        100.0 * e[2]
-    )
 }
 
 #[test]

@@ -9,11 +9,14 @@
 //! datasheet gives the sensor's −3 dB bandwidth ±10 % and its delay ±10 µs: `R_eddy`, `ξ`, `f0`
 //! within 3 % of the plant's, the priors recorded in the identified file's provenance. The same
 //! folder identified without the datasheet is printed beside it (`PRIORS_COMPARE=1`; it doubles
-//! the test's time). `PRIORS_FORMS=0,1,2` runs those sensor forms (default: 1).
+//! the test's time). `PRIORS_FORMS=0,1,2` runs those sensor forms (default: 1); `PRIORS_KEEP=1`
+//! keeps the folders (printed).
+
+mod common;
 
 use actuator_params::{ActuatorParams, Datasheet, Toleranced};
-use maglab_identify::experiments::ClassifyOptions;
-use maglab_identify::pipeline::{identify, Base, IdentifyOptions, RecordedDataset, PRIORS_KEY};
+use common::{constant_errors, pct, BenchFolder};
+use maglab_identify::pipeline::PRIORS_KEY;
 use maglab_plant::bench::{self, BenchSettings};
 use maglab_plant::Effect;
 
@@ -57,14 +60,12 @@ fn identified(form: usize, datasheet: Option<Datasheet>) -> (ActuatorParams, [f6
         &settings,
     )
     .expect("rig");
-    let dir = std::env::temp_dir().join(format!(
-        "maglab-datasheet-priors-{form}-{}-{}",
-        datasheet.is_some(),
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    bench::write_dataset(&dir, &recordings).expect("write");
-    let dataset = RecordedDataset::load(&dir, &ClassifyOptions::default()).expect("load");
+    let folder = BenchFolder::write(
+        &format!("datasheet-priors-{form}-{}", datasheet.is_some()),
+        &recordings,
+        true,
+        "PRIORS_KEEP",
+    );
     // A datasheet's constants, not the plant's: R_eddy, ξ, f0 off by ×1.4, ×0.75, ×1.2 (as
     // `lab/tests/common`'s base file), so that the fit does not start at its answer.
     let mut base = ActuatorParams {
@@ -75,33 +76,9 @@ fn identified(form: usize, datasheet: Option<Datasheet>) -> (ActuatorParams, [f6
     base.actuator.damping_ratio *= 0.75;
     base.actuator.resonance_hz *= 1.2;
     base.validate("base").expect("a valid base file");
-    let id = identify(
-        &dataset,
-        Base {
-            params: &base,
-            name: "base with a datasheet",
-        },
-        &IdentifyOptions::default(),
-        &|_, _, _| {},
-    )
-    .expect("identify");
-    let _ = std::fs::remove_dir_all(&dir);
-    let (a, t) = (&id.params.actuator, &truth.actuator);
-    let errors = [
-        a.eddy_resistance_ohm / t.eddy_resistance_ohm - 1.0,
-        a.damping_ratio / t.damping_ratio - 1.0,
-        a.resonance_hz / t.resonance_hz - 1.0,
-    ];
+    let id = folder.identify(&base, "base with a datasheet");
+    let errors = constant_errors(&id.params, &truth);
     (id.params, errors)
-}
-
-fn pct(e: [f64; 3]) -> String {
-    format!(
-        "R_eddy {:+.1} %, xi {:+.1} %, f0 {:+.1} %",
-        100.0 * e[0],
-        100.0 * e[1],
-        100.0 * e[2]
-    )
 }
 
 #[test]

@@ -17,8 +17,9 @@
 //! `ROD_KEEP=1` keeps each dataset folder (printed) for `maglab identify` / `maglab diagnose`;
 //! `ROD_FIRST_SEED=n` numbers the rods' noise seeds from `n` (default 1).
 
-use maglab_identify::experiments::ClassifyOptions;
-use maglab_identify::pipeline::{identify, Base, IdentifyOptions, RecordedDataset};
+mod common;
+
+use common::{constant_errors, BenchFolder};
 use maglab_plant::bench::{self, BenchSettings};
 use maglab_plant::{Family, Plant, Rod};
 
@@ -45,25 +46,13 @@ fn identify_rod(rod: Rod, seed: u64) -> Row {
         &settings,
     )
     .expect("rig");
-    let dir = std::env::temp_dir().join(format!(
-        "maglab-rod-{}-{}-{seed}",
-        rod.label().replace(':', "-"),
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    bench::write_dataset(&dir, &recordings).expect("write");
-    std::fs::remove_file(dir.join("dataset.json")).expect("undocument");
-    let dataset = RecordedDataset::load(&dir, &ClassifyOptions::default()).expect("load");
-    let identified = identify(
-        &dataset,
-        Base {
-            params: &params,
-            name: "default parameters",
-        },
-        &IdentifyOptions::default(),
-        &|_, _, _| {},
-    )
-    .expect("identify");
+    let folder = BenchFolder::write(
+        &format!("rod-{}-{seed}", rod.label().replace(':', "-")),
+        &recordings,
+        false,
+        "ROD_KEEP",
+    );
+    let identified = folder.identify(&params, "default parameters");
     // The file says which loops its masses were measured on: the sines' own (the 1 Hz ones
     // reverse at their ends), not a small loop at another bias.
     let measured =
@@ -75,12 +64,6 @@ fn identify_rod(rod: Rod, seed: u64) -> Row {
         "{measured:?}"
     );
     assert!(!measured.covers(0.35, 0.65), "{measured:?}");
-    if std::env::var("ROD_KEEP").is_err() {
-        let _ = std::fs::remove_dir_all(&dir);
-    } else {
-        println!("kept {}", dir.display());
-    }
-    let a = &identified.params.actuator;
     let t = &params.actuator;
     Row {
         rod: format!(
@@ -89,11 +72,7 @@ fn identify_rod(rod: Rod, seed: u64) -> Row {
             rod.coercivity_a_per_m / 1e3,
             rod.coercivity_spread_a_per_m / 1e3
         ),
-        errors: [
-            a.eddy_resistance_ohm / t.eddy_resistance_ohm - 1.0,
-            a.damping_ratio / t.damping_ratio - 1.0,
-            a.resonance_hz / t.resonance_hz - 1.0,
-        ],
+        errors: constant_errors(&identified.params, &params),
         mass_sum_of_ms: identified.masses.fit.weights.iter().sum::<f64>()
             / t.saturation_magnetization_a_per_m,
         worst_quasi_static_nrmse: identified

@@ -270,7 +270,7 @@ fn print_result(
     base: &actuator_params::ActuatorParams,
     base_name: &str,
 ) {
-    for prior in maglab_identify::pipeline::datasheet_priors(base) {
+    for prior in maglab_model::priors::uses_of(base) {
         println!("datasheet prior: {}", prior.describe());
     }
     if let Some(choice) = &id.reversible {

@@ -9,12 +9,8 @@
 //! held-out experiments, and sines through the resonance advised); both say which datasheet
 //! values they used.
 mod common;
-use common::maglab;
+use common::{json, maglab};
 use std::path::Path;
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).expect("file written")).expect("JSON")
-}
 
 #[test]
 fn a_datasheet_sensor_is_kept_out_of_the_rod_constants_and_named_by_the_diagnosis() {

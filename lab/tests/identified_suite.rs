@@ -143,9 +143,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
     let log =
         maglab(&identify.iter().map(String::as_str).collect::<Vec<_>>()).expect("identify runs");
     std::fs::write(dir.join("identify.log"), log).expect("log written");
-    let id: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&identified).expect("written"))
-            .expect("JSON");
+    let id = common::json(&identified);
     let a = &id["actuator"];
     let constants = [
         a["eddy_resistance_ohm"].as_f64().unwrap_or(f64::NAN),
@@ -169,10 +167,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
         &s(&data),
     ])
     .expect("diagnose runs");
-    let d: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(report.join("diagnosis.json")).expect("written"),
-    )
-    .expect("JSON");
+    let d = common::json(&report.join("diagnosis.json"));
     let mut named: Vec<String> = std::iter::once(d["verdict"].as_str().unwrap_or("?").to_string())
         .chain(
             d["additional_effects"]
@@ -347,8 +342,7 @@ fn identify_scans_f0_when_the_file_cannot_meet_the_lags() {
     .expect("identify runs");
     println!("{log}");
     assert!(log.contains("phase-lag scheme (f0 scanned)"), "{log}");
-    let id: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).expect("written")).expect("JSON");
+    let id = common::json(&out);
     let f0 = id["actuator"]["resonance_hz"].as_f64().expect("f0");
     assert!((392.0 / 3.0..=392.0 * 3.0).contains(&f0), "f0 {f0} Hz");
 }

@@ -16,12 +16,8 @@
 //! `none` (with the constants refitted in the wide range of identified constants), and the
 //! report's "where" has one frequency band per sine frequency, none for the reversal sweep.
 mod common;
-use common::maglab;
+use common::{json, maglab};
 use std::path::Path;
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).expect("file written")).expect("JSON")
-}
 
 #[test]
 fn identify_then_diagnose_recovers_the_plant_and_finds_no_effect() {

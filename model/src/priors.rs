@@ -37,6 +37,38 @@ pub const TERFENOL_DENSITY_KG_M3: f64 = 9250.0;
 /// a range to move in (a zero-width band leaves its Jacobian column zero).
 const MIN_RELATIVE_WIDTH: f64 = 1e-6;
 
+/// Each datasheet field (in [`Datasheet::fields`]'s order) and the candidate parameter it bounds
+/// (`None`: none; module docs).
+const TARGETS: [(&str, Option<(EffectName, &str)>); 6] = [
+    (
+        "sensor_bandwidth_hz",
+        Some((EffectName::SensorDynamics, "natural_hz")),
+    ),
+    (
+        "sensor_delay_s",
+        Some((EffectName::SensorDynamics, "delay_s")),
+    ),
+    (
+        "amplifier_bandwidth_hz",
+        Some((EffectName::AmplifierBandwidth, "natural_hz")),
+    ),
+    ("coil_resistance_ohm", None),
+    ("coil_inductance_h", None),
+    (
+        "load_mass_kg",
+        Some((EffectName::MechanicalLoad, "mass_ratio")),
+    ),
+];
+
+/// Every datasheet value of a parameter file and what it bounds, with the library's parameter
+/// ranges (what `maglab identify` and `maglab diagnose` report).
+pub fn uses_of(params: &actuator_params::ActuatorParams) -> Vec<PriorUse> {
+    let nominal = crate::model::Nominal::from_params(params);
+    nominal
+        .priors
+        .uses(&|e| crate::candidates::library_parameters(e, &nominal))
+}
+
 /// The datasheet's priors and what they act on.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Priors {
@@ -74,14 +106,12 @@ impl Priors {
 
     /// The datasheet value that bounds `effect`'s parameter `name`, if any.
     fn source(&self, effect: EffectName, name: &str) -> Option<Toleranced> {
-        let d = &self.datasheet;
-        match (effect, name) {
-            (EffectName::SensorDynamics, "natural_hz") => d.sensor_bandwidth_hz,
-            (EffectName::SensorDynamics, "delay_s") => d.sensor_delay_s,
-            (EffectName::AmplifierBandwidth, "natural_hz") => d.amplifier_bandwidth_hz,
-            (EffectName::MechanicalLoad, "mass_ratio") => d.load_mass_kg,
-            _ => None,
-        }
+        self.datasheet
+            .fields()
+            .iter()
+            .zip(TARGETS)
+            .find(|(_, (_, target))| *target == Some((effect, name)))
+            .and_then(|((_, given), _)| *given)
     }
 
     /// The band the datasheet puts on parameter `k` of `specs` (an effect's parameters, the
@@ -173,30 +203,10 @@ impl Priors {
     /// Every given value and what it bounds (the reports list them), with `specs_of` the
     /// library's parameters of an effect.
     pub fn uses(&self, specs_of: &dyn Fn(EffectName) -> Vec<ParamSpec>) -> Vec<PriorUse> {
-        let targets = [
-            (
-                "sensor_bandwidth_hz",
-                Some((EffectName::SensorDynamics, "natural_hz")),
-            ),
-            (
-                "sensor_delay_s",
-                Some((EffectName::SensorDynamics, "delay_s")),
-            ),
-            (
-                "amplifier_bandwidth_hz",
-                Some((EffectName::AmplifierBandwidth, "natural_hz")),
-            ),
-            ("coil_resistance_ohm", None),
-            ("coil_inductance_h", None),
-            (
-                "load_mass_kg",
-                Some((EffectName::MechanicalLoad, "mass_ratio")),
-            ),
-        ];
         self.datasheet
             .fields()
             .iter()
-            .zip(targets)
+            .zip(TARGETS)
             .filter_map(|((field, given), (_, target))| {
                 let given = (*given)?;
                 let acts_on = match target {

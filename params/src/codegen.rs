@@ -56,6 +56,21 @@ impl CoreLiteral for Option<Vec<f64>> {
     }
 }
 
+impl CoreLiteral for Option<crate::CoilThermal> {
+    fn literal(&self) -> String {
+        match self {
+            None => "None".into(),
+            Some(t) => format!(
+                "Some(CoilThermal {{ thermal_resistance_k_per_w: {}, time_constant_s: {}, \
+                 max_rise_k: {} }})",
+                t.thermal_resistance_k_per_w.literal(),
+                t.time_constant_s.literal(),
+                t.max_rise_k.literal()
+            ),
+        }
+    }
+}
+
 /// The Rust source of the baked constants.
 pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
     let mut out = String::new();

@@ -44,6 +44,7 @@ macro_rules! core_fields {
             amplifier.compliance_voltage_v => amplifier.compliance_voltage_v;
             amplifier.coil_resistance_ohm => amplifier.coil_resistance_ohm;
             amplifier.coil_inductance_h => amplifier.coil_inductance_h;
+            coil_thermal => coil_thermal;
             sensor.adc_bits => sensor.adc_bits;
             sensor.gain_m_per_count => sensor.gain_m_per_count;
             sensor.offset_m => sensor.offset_m;

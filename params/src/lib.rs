@@ -102,5 +102,6 @@ pub fn paper_defaults() -> ActuatorParams {
             details,
         },
         datasheet: None,
+        coil_thermal: None,
     }
 }

@@ -45,6 +45,10 @@ pub struct ActuatorParams {
     /// (optional; the firmware bakes none of it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub datasheet: Option<crate::Datasheet>,
+    /// The coil's thermal constants and the temperature rise the measurement programme may cause
+    /// (optional; without it the programme runs without pauses).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coil_thermal: Option<CoilThermal>,
 }
 
 /// Physical constants of the actuator.
@@ -205,6 +209,21 @@ impl Amplifier {
         (self.compliance_voltage_v - self.coil_resistance_ohm * current_limit_a)
             / self.coil_inductance_h
     }
+}
+
+/// The coil's lumped thermal model, `τ ΔT' = R_th R_coil I² − ΔT` (the heat `I² R_coil`, with the
+/// hot resistance of [`Amplifier::coil_resistance_ohm`], through the winding's thermal resistance
+/// to ambient), and the rise the firmware's measurement programme keeps under (it pauses at 0 A
+/// where the Preisach memory allows, `magctl::programme`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CoilThermal {
+    /// Thermal resistance from the winding to ambient, K/W.
+    pub thermal_resistance_k_per_w: f64,
+    /// Thermal time constant of the winding, s.
+    pub time_constant_s: f64,
+    /// Largest temperature rise of the winding the measurement programme may cause, K.
+    pub max_rise_k: f64,
 }
 
 /// The displacement sensor: an ADC count per control tick, scaled to metres. A reading outside
@@ -419,6 +438,20 @@ impl ActuatorParams {
         self.check_reach(&err)?;
         if let Some(d) = &self.datasheet {
             d.check(&err)?;
+        }
+        if let Some(t) = &self.coil_thermal {
+            for (name, value) in [
+                (
+                    "coil_thermal.thermal_resistance_k_per_w",
+                    t.thermal_resistance_k_per_w,
+                ),
+                ("coil_thermal.time_constant_s", t.time_constant_s),
+                ("coil_thermal.max_rise_k", t.max_rise_k),
+            ] {
+                if !(value.is_finite() && value > 0.0) {
+                    return Err(err(name, format!("must be finite and > 0, got {value}")));
+                }
+            }
         }
         Ok(())
     }

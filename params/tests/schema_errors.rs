@@ -277,3 +277,56 @@ fn datasheet_values_are_checked_and_read_back() {
         .to_json_pretty()
         .contains("datasheet"));
 }
+
+/// The optional `coil_thermal` section (baked: the measurement programme's heat budget): a bad
+/// or missing member is rejected naming it; a valid one reads back and bakes.
+#[test]
+fn coil_thermal_values_are_checked_read_back_and_baked() {
+    let with = |entry: serde_json::Value| {
+        let mut v: serde_json::Value = serde_json::from_str(&valid_text()).expect("JSON");
+        v["coil_thermal"] = entry;
+        serde_json::to_string_pretty(&v).expect("JSON")
+    };
+    let rejected = [
+        (
+            serde_json::json!({"thermal_resistance_k_per_w": 4.0, "time_constant_s": 0.0, "max_rise_k": 20.0}),
+            "coil_thermal.time_constant_s",
+            "must be finite and > 0",
+        ),
+        (
+            serde_json::json!({"thermal_resistance_k_per_w": -4.0, "time_constant_s": 300.0, "max_rise_k": 20.0}),
+            "coil_thermal.thermal_resistance_k_per_w",
+            "must be finite and > 0",
+        ),
+        (
+            serde_json::json!({"thermal_resistance_k_per_w": 4.0, "time_constant_s": 300.0}),
+            "coil_thermal.max_rise_k",
+            "missing field",
+        ),
+    ];
+    for (entry, field, reason) in rejected {
+        let err = ActuatorParams::parse(&with(entry.clone()), "coil.json")
+            .expect_err("a bad coil_thermal value must be rejected");
+        assert_eq!(err.field, field, "{entry}: {err}");
+        assert!(err.reason.contains(reason), "{entry}: {err}");
+    }
+    let good = with(serde_json::json!({
+        "thermal_resistance_k_per_w": 4.0, "time_constant_s": 300.0, "max_rise_k": 20.0
+    }));
+    let p = ActuatorParams::parse(&good, "coil.json").expect("valid");
+    assert_eq!(
+        p.coil_thermal.map(|t| t.max_rise_k),
+        Some(20.0),
+        "read back"
+    );
+    let again = ActuatorParams::parse(&p.to_json_pretty(), "again").expect("round trip");
+    assert_eq!(again.coil_thermal, p.coil_thermal);
+    let source = actuator_params::codegen::rust_constants(&p, "coil.json");
+    assert!(
+        source.contains("p.coil_thermal = Some(CoilThermal { thermal_resistance_k_per_w: 4.0f32"),
+        "{source}"
+    );
+    assert!(!actuator_params::paper_defaults()
+        .to_json_pretty()
+        .contains("coil_thermal"));
+}

@@ -439,6 +439,11 @@ impl Plant {
         self.x[I_COIL]
     }
 
+    /// Coil temperature rise, K.
+    pub fn coil_temperature_rise_k(&self) -> f64 {
+        self.x[T_COIL]
+    }
+
     /// Rod temperature rise, K.
     pub fn rod_temperature_rise_k(&self) -> f64 {
         self.x[T_ROD]

@@ -414,12 +414,10 @@ mod firmware {
         let mut ticks = tracking_ticks.saturating_add(conditioning_ticks);
         let mut drain = None;
         let recorder = if local {
-            let Ok(programme) = IdentificationProgramme::new(
+            let Ok(programme) = IdentificationProgramme::for_parameters(
                 control.limiter(),
-                BAKED_PARAMETERS.actuator.coil_factor_per_m,
+                &BAKED_PARAMETERS,
                 &BAKED_MEASURE,
-                BAKED_PARAMETERS.preisach.reach_a_per_m,
-                rate_hz,
             ) else {
                 defmt::error!("the identification programme cannot run with the baked parameters");
                 semihosting::exit(5)

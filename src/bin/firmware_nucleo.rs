@@ -527,12 +527,10 @@ mod firmware {
         let state = control.init::<CAPACITY>(INVERSE);
         #[cfg(feature = "measurement-mode")]
         let (recorder, drain) = {
-            let Ok(programme) = magctl::programme::IdentificationProgramme::new(
+            let Ok(programme) = magctl::programme::IdentificationProgramme::for_parameters(
                 control.limiter(),
-                p.actuator.coil_factor_per_m,
+                p,
                 &BAKED_MEASURE,
-                p.preisach.reach_a_per_m,
-                p.control.sample_rate_hz,
             ) else {
                 halt(
                     "the identification programme cannot run with the baked parameters",

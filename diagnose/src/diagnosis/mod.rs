@@ -195,16 +195,6 @@ impl Default for DiagnoseOptions {
     }
 }
 
-/// The file's datasheet values and what each bounds in the candidates' fits.
-pub fn datasheet_priors(
-    params: &actuator_params::ActuatorParams,
-) -> Vec<maglab_model::priors::PriorUse> {
-    let nominal = maglab_model::model::Nominal::from_params(params);
-    nominal
-        .priors
-        .uses(&|e| maglab_model::candidates::library_parameters(e, &nominal))
-}
-
 /// Runs the diagnosis on `measurements` with the nominal parameters; `documented` is the
 /// dataset's `dataset.json` when it has one.
 ///
@@ -615,7 +605,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
                 .collect(),
             unmeasured_loops,
             unmeasured_loops_warning,
-            datasheet_priors: datasheet_priors(params)
+            datasheet_priors: maglab_model::priors::uses_of(params)
                 .iter()
                 .map(|u| u.to_json())
                 .collect(),

@@ -258,14 +258,6 @@ pub const AMPLIFIER_KEY: &str = "coil_current";
 /// The provenance entry of the datasheet priors the fits used (`maglab_model::priors`).
 pub const PRIORS_KEY: &str = "datasheet_priors";
 
-/// The base file's datasheet values and what each bounds (empty without a datasheet).
-pub fn datasheet_priors(base: &ActuatorParams) -> Vec<maglab_model::priors::PriorUse> {
-    let nominal = maglab_model::model::Nominal::from_params(base);
-    nominal
-        .priors
-        .uses(&|e| maglab_model::candidates::library_parameters(e, &nominal))
-}
-
 /// Identifies `dataset` from `base` (see the module docs); `progress` reports the phase-lag
 /// scheme's grid (called from worker threads).
 pub fn identify(
@@ -352,7 +344,7 @@ pub fn identify(
             }),
         );
     }
-    let priors = datasheet_priors(base.params);
+    let priors = maglab_model::priors::uses_of(base.params);
     if !priors.is_empty() {
         params.provenance.details.insert(
             PRIORS_KEY.into(),

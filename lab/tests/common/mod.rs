@@ -1,5 +1,6 @@
 //! Shared by the `maglab` binary's tests: running it, the base file a user starts `maglab
-//! identify` from and that command's arguments, and the bench folder the identify tests record.
+//! identify` from and that command's arguments, the bench folder the identify tests record, and
+//! reading the JSON files it writes.
 
 use std::path::Path;
 
@@ -83,4 +84,12 @@ pub fn maglab(args: &[&str]) -> String {
     );
     assert!(out.status.success(), "maglab {args:?} failed:\n{text}");
     text
+}
+
+/// The JSON file `maglab` wrote at `path` (an identified parameter file, `diagnosis.json`).
+#[allow(dead_code)] // not every test crate that includes this module reads one
+pub fn json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{} not written: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: not JSON: {e}", path.display()))
 }

@@ -12,8 +12,9 @@ use std::path::Path;
 pub struct Programme {
     /// Current of every tick, A (conditioning included).
     pub current_a: Vec<f32>,
-    /// Recorded experiments: file stem, description, first tick, ticks.
-    pub experiments: Vec<(String, String, usize, usize)>,
+    /// Recorded experiments: file stem, description, and the tick of each recorded sample (with
+    /// a coil heat budget the FORC sweep's samples are interrupted by unrecorded pauses).
+    pub experiments: Vec<(String, String, Vec<usize>)>,
 }
 
 /// The identification programme `maglab identify` needs, built from the *nominal* (baked)
@@ -46,9 +47,16 @@ pub fn identification_programme() -> Result<Programme> {
             prog.experiments.push((
                 described.name(t.experiment),
                 described.description(),
-                prog.current_a.len(),
-                e.ticks as usize,
+                Vec::with_capacity(e.ticks as usize),
             ));
+        }
+        if t.sample.is_some() {
+            let tick = prog.current_a.len();
+            prog.experiments
+                .last_mut()
+                .context("a recorded tick before its experiment's first")?
+                .2
+                .push(tick);
         }
         prog.current_a.push(t.current_a);
     }
@@ -61,14 +69,8 @@ pub(super) fn core_programme() -> Result<magctl::programme::IdentificationProgra
     let measure = &magctl::params::BAKED_MEASURE;
     let limiter = magctl::inverse::OutputLimiter::new(&p.control)
         .map_err(|e| anyhow::anyhow!("control settings: {e:?}"))?;
-    magctl::programme::IdentificationProgramme::new(
-        &limiter,
-        p.actuator.coil_factor_per_m,
-        measure,
-        p.preisach.reach_a_per_m,
-        p.control.sample_rate_hz,
-    )
-    .map_err(|e| anyhow::anyhow!("identification programme: {e:?}"))
+    magctl::programme::IdentificationProgramme::for_parameters(&limiter, p, measure)
+        .map_err(|e| anyhow::anyhow!("identification programme: {e:?}"))
 }
 
 /// Ticks of a local measurement run: the programme, then the ramp to 0 A (as firmware-hil
@@ -139,23 +141,23 @@ pub(super) fn write_dataset(programme: &Programme, rows: &[TickRow], dir: &Path)
         start_state: Some(start),
         files: Default::default(),
     };
-    for (name, description, start, len) in &programme.experiments {
-        let mut t = Vec::with_capacity(*len);
-        let mut i = Vec::with_capacity(*len);
-        let mut y = Vec::with_capacity(*len);
-        let mut coil = Vec::with_capacity(*len);
-        for k in 0..*len {
-            let row = rows.get(start + k);
+    for (name, description, ticks) in &programme.experiments {
+        let len = ticks.len();
+        let mut t = Vec::with_capacity(len);
+        let mut i = Vec::with_capacity(len);
+        let mut y = Vec::with_capacity(len);
+        let mut coil = Vec::with_capacity(len);
+        for (k, &tick) in ticks.iter().enumerate() {
+            let row = rows.get(tick);
             let c = row
                 .and_then(|r| r.command)
-                .with_context(|| format!("{name}: no command frame for tick {}", start + k))?;
+                .with_context(|| format!("{name}: no command frame for tick {tick}"))?;
             if let Some(i) = row.and_then(|r| r.coil_current_a) {
                 coil.push(i as f64);
             }
             ensure!(
                 c.flags & CommandFlags::MEASURE != 0 && c.desired_m.is_finite(),
-                "{name}: tick {} has no valid reading (flags {})",
-                start + k,
+                "{name}: tick {tick} has no valid reading (flags {})",
                 c.flags
             );
             t.push(k as f64 / rate_hz);
