@@ -158,6 +158,16 @@ pub struct CoilThermal {
     pub max_rise_k: f32,
 }
 
+/// The current-monitor channel's scaling (the parameter file's `current_monitor` section):
+/// `coil_current_a = offset_a + gain_a_per_count · count`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurrentMonitorScale {
+    /// Coil current per count, A.
+    pub gain_a_per_count: f32,
+    /// Coil current at count 0, A.
+    pub offset_a: f32,
+}
+
 /// The displacement sensor (see the parameter file's `sensor` section).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sensor {
@@ -205,6 +215,8 @@ pub struct ActuatorParameters {
     pub trajectory: Trajectory,
     /// The coil's thermal budget for the measurement programme (`None`: no pauses).
     pub coil_thermal: Option<CoilThermal>,
+    /// The current-monitor channel (`None`: the record has no coil current).
+    pub current_monitor: Option<CurrentMonitorScale>,
 }
 
 include!(concat!(env!("OUT_DIR"), "/baked_params.rs"));
@@ -272,6 +284,7 @@ impl ActuatorParameters {
             displacement_max_m: 0.0,
         },
         coil_thermal: None,
+        current_monitor: None,
     };
 }
 
@@ -395,6 +408,28 @@ mod file_mapping {
                 thermal_resistance_k_per_w: t.thermal_resistance_k_per_w as f64,
                 time_constant_s: t.time_constant_s as f64,
                 max_rise_k: t.max_rise_k as f64,
+            })
+        }
+    }
+
+    impl Narrow<Option<super::CurrentMonitorScale>> for Option<actuator_params::CurrentMonitorScale> {
+        fn narrow(
+            &self,
+            _: &str,
+            _: &str,
+        ) -> Result<Option<super::CurrentMonitorScale>, ParamsError> {
+            Ok(self.map(|m| super::CurrentMonitorScale {
+                gain_a_per_count: m.gain_a_per_count as f32,
+                offset_a: m.offset_a as f32,
+            }))
+        }
+    }
+
+    impl Widen<Option<actuator_params::CurrentMonitorScale>> for Option<super::CurrentMonitorScale> {
+        fn widen(&self) -> Option<actuator_params::CurrentMonitorScale> {
+            self.map(|m| actuator_params::CurrentMonitorScale {
+                gain_a_per_count: m.gain_a_per_count as f64,
+                offset_a: m.offset_a as f64,
             })
         }
     }

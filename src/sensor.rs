@@ -1,5 +1,6 @@
 //! The displacement sample of every control tick: ADC count → metres, and the checks that make
-//! a bad sample a fault instead of a number (`sensor` section of the parameter file).
+//! a bad sample a fault instead of a number (`sensor` section of the parameter file); and the
+//! current monitor's count of the same tick → amperes (`current_monitor`).
 //!
 //! A sensor at one of its rails (saturated, cable off), a rod beyond its stroke, a count the ADC
 //! cannot produce or a non-finite value from a link is a [`SensorFault`]. The control loop
@@ -7,7 +8,7 @@
 //!
 //! Cost: a compare, a multiply-add and two compares (~10 instructions).
 
-use crate::params::Sensor;
+use crate::params::{CurrentMonitorScale, Sensor};
 
 /// Why a sample was rejected.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -66,6 +67,14 @@ impl SensorScale {
             return Err(SensorFault::CountOutOfRange);
         }
         Ok(self.offset_m + self.gain_m_per_count * count as f32)
+    }
+
+    /// The coil current of a current-monitor count on the same converter, A (`None`: a count
+    /// the ADC cannot produce — the record then holds NaN for the tick, never a made-up value).
+    #[inline]
+    pub fn monitor_current_a(&self, monitor: &CurrentMonitorScale, count: u32) -> Option<f32> {
+        (count <= self.max_count)
+            .then_some(monitor.offset_a + monitor.gain_a_per_count * count as f32)
     }
 
     /// Checks a reading already in metres (a virtual sensor, a link), m, or the fault.
@@ -128,5 +137,21 @@ mod tests {
         }
         assert_eq!(scale.count_of(f32::NAN), 0);
         assert_eq!(scale.count_of(1.0), 4095);
+    }
+
+    /// A ±5 A monitor on the 12-bit converter (2.44 mA per count, 0 A at mid-scale).
+    #[test]
+    fn monitor_counts_scale_to_amperes_and_impossible_counts_are_none() {
+        let scale = SensorScale::new(&BAKED_PARAMETERS.sensor);
+        let monitor = CurrentMonitorScale {
+            gain_a_per_count: 10.0 / 4095.0,
+            offset_a: -5.0,
+        };
+        assert_eq!(scale.monitor_current_a(&monitor, 0), Some(-5.0));
+        let top = scale.monitor_current_a(&monitor, 4095).unwrap();
+        assert!((top - 5.0).abs() < 1e-5, "{top}");
+        let mid = scale.monitor_current_a(&monitor, 2048).unwrap();
+        assert!(mid.abs() < 2e-3, "{mid}");
+        assert_eq!(scale.monitor_current_a(&monitor, 4096), None);
     }
 }

@@ -71,6 +71,19 @@ impl CoreLiteral for Option<crate::CoilThermal> {
     }
 }
 
+impl CoreLiteral for Option<crate::CurrentMonitorScale> {
+    fn literal(&self) -> String {
+        match self {
+            None => "None".into(),
+            Some(m) => format!(
+                "Some(CurrentMonitorScale {{ gain_a_per_count: {}, offset_a: {} }})",
+                m.gain_a_per_count.literal(),
+                m.offset_a.literal()
+            ),
+        }
+    }
+}
+
 /// The Rust source of the baked constants.
 pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {
     let mut out = String::new();

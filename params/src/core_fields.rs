@@ -45,6 +45,7 @@ macro_rules! core_fields {
             amplifier.coil_resistance_ohm => amplifier.coil_resistance_ohm;
             amplifier.coil_inductance_h => amplifier.coil_inductance_h;
             coil_thermal => coil_thermal;
+            current_monitor => current_monitor;
             sensor.adc_bits => sensor.adc_bits;
             sensor.gain_m_per_count => sensor.gain_m_per_count;
             sensor.offset_m => sensor.offset_m;

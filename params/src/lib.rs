@@ -103,5 +103,6 @@ pub fn paper_defaults() -> ActuatorParams {
         },
         datasheet: None,
         coil_thermal: None,
+        current_monitor: None,
     }
 }

@@ -49,6 +49,10 @@ pub struct ActuatorParams {
     /// (optional; without it the programme runs without pauses).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coil_thermal: Option<CoilThermal>,
+    /// The amplifier's current-monitor output on the measurement image's second ADC channel
+    /// (optional; without it the firmware's record has no coil current).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub current_monitor: Option<CurrentMonitorScale>,
 }
 
 /// Physical constants of the actuator.
@@ -224,6 +228,19 @@ pub struct CoilThermal {
     pub time_constant_s: f64,
     /// Largest temperature rise of the winding the measurement programme may cause, K.
     pub max_rise_k: f64,
+}
+
+/// The current amplifier's current-monitor output, wired to the measurement image's second ADC
+/// channel and converted on the displacement's trigger (NUCLEO: ADC2 channel 1, PA1, simultaneous
+/// with the sensor's ADC1 channel 0): `coil_current_a = offset_a + gain_a_per_count · count`,
+/// counts of the sensor's `adc_bits`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CurrentMonitorScale {
+    /// Coil current per count, A (negative for a monitor wired the other way round).
+    pub gain_a_per_count: f64,
+    /// Coil current at count 0, A.
+    pub offset_a: f64,
 }
 
 /// The displacement sensor: an ADC count per control tick, scaled to metres. A reading outside
@@ -451,6 +468,20 @@ impl ActuatorParams {
                 if !(value.is_finite() && value > 0.0) {
                     return Err(err(name, format!("must be finite and > 0, got {value}")));
                 }
+            }
+        }
+        if let Some(m) = &self.current_monitor {
+            if !(m.gain_a_per_count.is_finite() && m.gain_a_per_count != 0.0) {
+                return Err(err(
+                    "current_monitor.gain_a_per_count",
+                    format!("must be finite and non-zero, got {}", m.gain_a_per_count),
+                ));
+            }
+            if !m.offset_a.is_finite() {
+                return Err(err(
+                    "current_monitor.offset_a",
+                    format!("must be finite, got {}", m.offset_a),
+                ));
             }
         }
         Ok(())

@@ -330,3 +330,44 @@ fn coil_thermal_values_are_checked_read_back_and_baked() {
         .to_json_pretty()
         .contains("coil_thermal"));
 }
+
+/// The optional `current_monitor` section (baked: the measurement image's second ADC channel).
+#[test]
+fn current_monitor_values_are_checked_read_back_and_baked() {
+    let with = |entry: serde_json::Value| {
+        let mut v: serde_json::Value = serde_json::from_str(&valid_text()).expect("JSON");
+        v["current_monitor"] = entry;
+        serde_json::to_string_pretty(&v).expect("JSON")
+    };
+    for (entry, field, reason) in [
+        (
+            serde_json::json!({"gain_a_per_count": 0.0, "offset_a": -5.0}),
+            "current_monitor.gain_a_per_count",
+            "must be finite and non-zero",
+        ),
+        (
+            serde_json::json!({"gain_a_per_count": 0.002}),
+            "current_monitor.offset_a",
+            "missing field",
+        ),
+        (
+            serde_json::json!({"gain_a_per_count": 0.002, "offset_a": -5.0, "bits": 12}),
+            "current_monitor.bits",
+            "unknown field",
+        ),
+    ] {
+        let err = ActuatorParams::parse(&with(entry.clone()), "monitor.json")
+            .expect_err("a bad current_monitor value must be rejected");
+        assert_eq!(err.field, field, "{entry}: {err}");
+        assert!(err.reason.contains(reason), "{entry}: {err}");
+    }
+    let good = with(serde_json::json!({"gain_a_per_count": 0.002442, "offset_a": -5.0}));
+    let p = ActuatorParams::parse(&good, "monitor.json").expect("valid");
+    let again = ActuatorParams::parse(&p.to_json_pretty(), "again").expect("round trip");
+    assert_eq!(again.current_monitor, p.current_monitor);
+    let source = actuator_params::codegen::rust_constants(&p, "monitor.json");
+    assert!(
+        source.contains("p.current_monitor = Some(CurrentMonitorScale { gain_a_per_count: 0.002442f32, offset_a: -5.0f32 })"),
+        "{source}"
+    );
+}

@@ -205,14 +205,17 @@ mod firmware {
         // ADC's range (identification drives the rod over its whole stroke).
         #[cfg(feature = "measurement-mode")]
         let out = {
-            let reading = app
-                .adc
-                .sample()
-                .and_then(|count| app.control.sensor().reading_m(count));
-            // The NUCLEO board has no current-monitor channel yet: the record's coil current is NaN.
+            let (count, monitor_count) = app.adc.sample_with_monitor();
+            let reading = count.and_then(|count| app.control.sensor().reading_m(count));
+            // The current monitor's reading of the same instant (the record holds NaN without
+            // one, or for a conversion that did not finish).
+            let coil_current_a = BAKED_PARAMETERS
+                .current_monitor
+                .zip(monitor_count)
+                .and_then(|(m, count)| app.control.sensor().monitor_current_a(&m, count));
             let out = app
                 .recorder
-                .tick(&app.control, &mut app.state, reading, None);
+                .tick(&app.control, &mut app.state, reading, coil_current_a);
             RECORD_LOST.store(app.recorder.lost(), Ordering::Relaxed);
             RECORD_ENDED.store(app.recorder.ended(), Ordering::Release);
             out
@@ -584,7 +587,18 @@ mod firmware {
         // Emulator build: the counter stopped, the interrupt pended per sample (`bench`).
         #[cfg(feature = "emulator-netduinoplus2")]
         let timer = timer.stopped();
-        #[cfg(not(feature = "emulator-netduinoplus2"))]
+        // The measurement image converts the current monitor with the sensor when the file has
+        // one (`current_monitor`); the tracking image never reads it.
+        #[cfg(all(not(feature = "emulator-netduinoplus2"), feature = "measurement-mode"))]
+        let adc = if p.current_monitor.is_some() {
+            DisplacementAdc::with_current_monitor(&dp.RCC)
+        } else {
+            DisplacementAdc::new(&dp.RCC)
+        };
+        #[cfg(all(
+            not(feature = "emulator-netduinoplus2"),
+            not(feature = "measurement-mode")
+        ))]
         let adc = DisplacementAdc::new(&dp.RCC);
         // The control interrupt feeds it from here on: the run timeout.
         if !watchdog.set_run_timeout() {
