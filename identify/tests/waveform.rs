@@ -76,3 +76,32 @@ fn automatic_substeps_hold_the_phase_at_the_top_fitted_frequency() {
     assert_eq!(substeps_for(20.0, step_s), 1);
     assert_eq!(substeps_for(1e4, step_s), 16);
 }
+
+/// The instruments' delay on a slow signal: a second-order sensor's DC group delay `2ζ/ωn` plus
+/// its conversion delay, and the amplifier's group delay; nothing for other parameters.
+#[test]
+fn instruments_delay_slow_signals_by_their_group_delay_and_conversion_delay() {
+    use maglab_identify::dynamics::waveform::instrument_delay_s;
+    let named = |pairs: &[(&str, f64)]| -> Vec<(String, f64)> {
+        pairs.iter().map(|(n, v)| (n.to_string(), *v)).collect()
+    };
+    assert_eq!(instrument_delay_s(&[]), 0.0);
+    let sensor = named(&[
+        ("sensor_dynamics.natural_hz", 1500.0),
+        ("sensor_dynamics.damping_ratio", 0.7),
+        ("sensor_dynamics.delay_s", 5e-5),
+    ]);
+    let want = 1.4 / (2.0 * PI * 1500.0) + 5e-5;
+    assert!((instrument_delay_s(&sensor) - want).abs() < 1e-12);
+    let both = [
+        sensor,
+        named(&[
+            ("amplifier_bandwidth.natural_hz", 2000.0),
+            ("amplifier_bandwidth.damping_ratio", 1.0),
+            ("amplifier_bandwidth.slew_a_per_s", 1e4),
+        ]),
+    ]
+    .concat();
+    let want = want + 2.0 / (2.0 * PI * 2000.0);
+    assert!((instrument_delay_s(&both) - want).abs() < 1e-12);
+}

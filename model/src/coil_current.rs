@@ -297,14 +297,14 @@ pub fn judge(measurements: &[Measurement]) -> Option<AmplifierJudgement> {
 /// not flagged in `quasi_static`), each read as [`interval_means_preserved`] makes it: the
 /// records the rod is judged on (`None` without the channel).
 ///
-/// Quasi-static records keep the command. At their rates (a few hertz) every amplifier of unity
-/// DC gain delivers the command, while the monitor's noise would enter the Preisach memory as a
-/// minor loop at every wiggle (eq. (2): each reversal of `H = c0 I` is one) and flip the sign
-/// rule of `M` near zero current; in a dynamic record the eddy-current equation (4) filters it
-/// out of `H`.
+/// Quasi-static records take the command as the coil carried it ([`delivered_current`]), not
+/// the monitor's reading: the monitor's noise would enter the Preisach memory as a minor loop at
+/// every wiggle (eq. (2): each reversal of `H = c0 I` is one) and flip the sign rule of `M` near
+/// zero current; in a dynamic record the eddy-current equation (4) filters it out of `H`.
 pub fn with_measured_current(
     measurements: &[Measurement],
     quasi_static: &[bool],
+    judgement: &AmplifierJudgement,
 ) -> Option<Vec<Measurement>> {
     measurements
         .iter()
@@ -312,13 +312,32 @@ pub fn with_measured_current(
         .map(|(m, &slow)| {
             m.coil_current_a.as_ref().map(|c| Measurement {
                 current_a: if slow {
-                    m.current_a.clone()
+                    delivered_current(&m.current_a, m.step_s, judgement)
                 } else {
                     interval_means_preserved(c)
                 },
                 ..m.clone()
             })
         })
+        .collect()
+}
+
+/// The `command` as the coil carried it at the displacement's sample instants, by the
+/// judgement's fitted amplifier (its lag `τ` and the monitor's skew against the command, which
+/// the monitor shares with the displacement: both are read on one trigger): smooth like the
+/// command, timed like the measured current. On a slow record the command leads the coil
+/// current by about `τ` plus the skew — at a sweep of 16 A/s a 1 ms lag is 16 mA, a tenth of a
+/// Preisach cell of the default grid — which masses fitted on the bare command would absorb as
+/// a shift of the loop, and a model fed the measured current on its dynamic records would then
+/// read as a gap.
+pub fn delivered_current(command: &[f64], step_s: f64, judgement: &AmplifierJudgement) -> Vec<f64> {
+    if command.is_empty() {
+        return Vec::new();
+    }
+    let between = CurrentBetweenSamples::parse(&judgement.current_between_samples)
+        .unwrap_or(CurrentBetweenSamples::Linear);
+    Lagged::new(command, between, judgement.lag_time_constant_s, step_s)
+        .read(judgement.skew_samples)
         .collect()
 }
 

@@ -218,7 +218,7 @@ pub fn diagnose(
         .iter()
         .map(|i| i.quasi_static)
         .collect();
-    let on_current = coil_current::with_measured_current(measurements, &quasi_static)
+    let on_current = coil_current::with_measured_current(measurements, &quasi_static, &judgement)
         .ok_or("the coil current is recorded in some experiments only")?;
     let without_amplifier = DiagnoseOptions {
         library: options

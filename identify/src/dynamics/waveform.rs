@@ -77,12 +77,45 @@ pub struct DynamicIdentification {
 }
 
 impl DynamicIdentification {
-    /// Where the current belongs to each displacement sample, in samples after the current's
-    /// own sample time: the channel skew, less half a sample when the current is held (a held
-    /// sample acts, on average, half a sample after its time stamp, as a linear one does at it).
-    pub fn current_read_shift_samples(&self) -> f64 {
-        self.channel_skew_samples - self.current_between_samples.mean_delay_samples()
+    /// Where the current belongs to each displacement sample, in samples of `step_s` after the
+    /// current's own sample time: the channel skew, less half a sample when the current is held
+    /// (a held sample acts, on average, half a sample after its time stamp, as a linear one does
+    /// at it), less the instruments' delay on slow signals ([`Self::instrument_delay_s`]).
+    pub fn current_read_shift_samples(&self, step_s: f64) -> f64 {
+        self.channel_skew_samples
+            - self.current_between_samples.mean_delay_samples()
+            - self.instrument_delay_s() / step_s
     }
+
+    /// How much the instruments fitted with the rod delay a slow signal, s
+    /// ([`instrument_delay_s`]).
+    pub fn instrument_delay_s(&self) -> f64 {
+        instrument_delay_s(&self.instruments)
+    }
+}
+
+/// How much `instruments` (report name, fitted value) delay a slow signal, s: a second-order
+/// low-pass `ωn² / (s² + 2ζωn s + ωn²)` by its group delay at DC, `2ζ/ωn`, and the sensor by its
+/// conversion delay besides. A sensor's delay makes each reading show an earlier displacement, an
+/// amplifier's makes the coil carry an earlier command: either way the displacement belongs to an
+/// earlier current. 0 without instruments.
+pub fn instrument_delay_s(instruments: &[(String, f64)]) -> f64 {
+    let value = |effect: &str, name: &str| {
+        instruments
+            .iter()
+            .find(|(n, _)| n == &format!("{effect}.{name}"))
+            .map(|(_, v)| *v)
+    };
+    ["sensor_dynamics", "amplifier_bandwidth"]
+        .iter()
+        .map(|effect| {
+            let group_s = match (value(effect, "natural_hz"), value(effect, "damping_ratio")) {
+                (Some(f), Some(zeta)) if f > 0.0 => 2.0 * zeta / (2.0 * std::f64::consts::PI * f),
+                _ => 0.0,
+            };
+            group_s + value(effect, "delay_s").unwrap_or(0.0)
+        })
+        .sum()
 }
 
 /// A substep of the fit's model spans at most this fraction of the period of the highest fitted

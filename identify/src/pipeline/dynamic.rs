@@ -135,7 +135,8 @@ impl DynamicStage<'_> {
                     resonance_hz: id.resonance_hz,
                 },
                 rms_nrmse: 0.0,
-                current_read_shift_samples: id.current_read_shift_samples(),
+                current_read_shift_samples: id
+                    .current_read_shift_samples(measurements.first().map_or(1.0, |m| m.step_s)),
                 details,
             },
             &predictions,

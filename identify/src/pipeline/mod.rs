@@ -54,22 +54,37 @@ pub struct RecordedDataset {
     /// model's input, so that the rod is identified from the current in its coil, whatever the
     /// amplifier made of the command.
     dynamic_on_measured_current: Option<Vec<DynamicExperiment>>,
+    /// With the coil current recorded, the quasi-static experiments as the coil carried their
+    /// command (`maglab_model::coil_current::delivered_current`): what the masses are fitted on.
+    quasi_static_on_delivered_current: Option<Vec<Measurement>>,
 }
 
 impl RecordedDataset {
     /// Reads the folder `dir` (errors name the file, line, column or field).
     pub fn load(dir: &Path, classify: &ClassifyOptions) -> Result<Self, DataError> {
         let split = load_split_dataset(dir, classify)?;
-        let (amplifier, dynamic_on_measured_current) = match on_measured_current(&split)? {
-            Some((a, d)) => (Some(a), Some(d)),
-            None => (None, None),
-        };
+        let (amplifier, dynamic_on_measured_current, quasi_static_on_delivered_current) =
+            match on_measured_current(&split)? {
+                Some((a, d, q)) => (Some(a), Some(d), Some(q)),
+                None => (None, None, None),
+            };
         Ok(RecordedDataset {
             documented: DatasetInfo::load(dir)?,
             split,
             amplifier,
             dynamic_on_measured_current,
+            quasi_static_on_delivered_current,
         })
+    }
+
+    /// The quasi-static experiments as the masses are fitted on them: with the coil current
+    /// recorded, each command as the coil carried it; else as recorded.
+    pub fn quasi_static_input(&self) -> maglab_dataset::data::Dataset {
+        let mut dataset = self.split.quasi_static_dataset();
+        if let Some(q) = &self.quasi_static_on_delivered_current {
+            dataset.measurements = q.clone();
+        }
+        dataset
     }
 
     /// Whether the dynamic model's input is the measured coil current.
@@ -87,14 +102,14 @@ impl RecordedDataset {
 }
 
 /// With the coil current recorded in every file: the amplifier judged on the command against
-/// it, and the dynamic experiments with the measured current as their current (the
-/// quasi-static ones keep the command: `maglab_model::coil_current::with_measured_current` says
-/// why). A dataset with the column in some files only is an error naming the first file that
+/// it, the dynamic experiments with the measured current as their current, and the quasi-static
+/// ones with the command as the coil carried it (`maglab_model::coil_current::with_measured_current`
+/// says why not the measured current). A dataset with the column in some files only is an error naming the first file that
 /// differs.
 #[allow(clippy::type_complexity)]
 fn on_measured_current(
     split: &SplitDataset,
-) -> Result<Option<(AmplifierJudgement, Vec<DynamicExperiment>)>, DataError> {
+) -> Result<Option<(AmplifierJudgement, Vec<DynamicExperiment>, Vec<Measurement>)>, DataError> {
     let all: Vec<&Measurement> = split
         .quasi_static
         .iter()
@@ -137,7 +152,17 @@ fn on_measured_current(
             d
         })
         .collect();
-    Ok(Some((judgement, dynamic)))
+    // The quasi-static records as the coil carried their command (the masses are fitted on
+    // them): timed like the measured current the dynamic records now carry.
+    let quasi_static = split
+        .quasi_static
+        .iter()
+        .map(|m| Measurement {
+            current_a: coil_current::delivered_current(&m.current_a, m.step_s, &judgement),
+            ..m.clone()
+        })
+        .collect();
+    Ok(Some((judgement, dynamic, quasi_static)))
 }
 
 /// The base parameter file: the grid, the constants the data do not give, the prior masses and
@@ -287,7 +312,7 @@ pub fn identify(
         ..options.masses.clone()
     };
     mass_options.fit.reversible = options.reversible.first_fit();
-    let quasi_static = split.quasi_static_dataset();
+    let quasi_static = dataset.quasi_static_input();
     let mut masses = identify_masses(&quasi_static, base.params, base.name, &mass_options)
         .map_err(|e| IdentifyError::step("Preisach masses", e))?;
     let mut reversible = None;

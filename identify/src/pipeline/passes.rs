@@ -130,7 +130,7 @@ pub fn alternate(
     options: &MassOptions,
     first: DynamicFit,
 ) -> Result<ChosenPass, IdentifyError> {
-    let dataset = stage.dataset.split.quasi_static_dataset();
+    let dataset = stage.dataset.quasi_static_input();
     let based = constants_of(base.params);
     let mut passes = vec![PassRecord {
         pass: 1,
