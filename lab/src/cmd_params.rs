@@ -148,5 +148,36 @@ fn check(path: &Path) -> Result<()> {
         t.displacement_min_m * 1e6,
         t.displacement_max_m * 1e6
     );
+    if let Some(h) = &file.coil_thermal {
+        let rise_k_per_a2 = h.thermal_resistance_k_per_w * amp.coil_resistance_ohm;
+        println!(
+            "  coil heat    {} K/W, τ {} s: {:.1} K/A², {:.1} K steady at the limit; the measurement \
+             programme keeps the rise <= {} K",
+            h.thermal_resistance_k_per_w,
+            h.time_constant_s,
+            rise_k_per_a2,
+            rise_k_per_a2 * c.current_limit_a * c.current_limit_a,
+            h.max_rise_k
+        );
+    }
+    if let Some(m) = &file.current_monitor {
+        let full_scale = ((1u64 << sn.adc_bits.min(63)) - 1) as f64;
+        println!(
+            "  monitor      coil current {:.4} mA/count from {} A: [{:.3}, {:.3}] A over the ADC",
+            m.gain_a_per_count * 1e3,
+            m.offset_a,
+            m.offset_a.min(m.offset_a + m.gain_a_per_count * full_scale),
+            m.offset_a.max(m.offset_a + m.gain_a_per_count * full_scale)
+        );
+    }
+    if let Some(d) = &file.datasheet {
+        let given: Vec<&str> = d
+            .fields()
+            .iter()
+            .filter(|(_, v)| v.is_some())
+            .map(|(name, _)| *name)
+            .collect();
+        println!("  datasheet    {}", given.join(", "));
+    }
     Ok(())
 }
