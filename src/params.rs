@@ -392,47 +392,32 @@ mod file_mapping {
         }
     }
 
-    impl Narrow<Option<super::CoilThermal>> for Option<actuator_params::CoilThermal> {
-        fn narrow(&self, _: &str, _: &str) -> Result<Option<super::CoilThermal>, ParamsError> {
-            Ok(self.map(|t| super::CoilThermal {
-                thermal_resistance_k_per_w: t.thermal_resistance_k_per_w as f32,
-                time_constant_s: t.time_constant_s as f32,
-                max_rise_k: t.max_rise_k as f32,
-            }))
-        }
-    }
+    /// An optional section of f64 members in the file and f32 members in the core, member by
+    /// member (the same narrowing as a scalar field).
+    macro_rules! optional_section {
+        ($section:ident { $($member:ident),+ }) => {
+            impl Narrow<Option<super::$section>> for Option<actuator_params::$section> {
+                fn narrow(&self, _: &str, _: &str) -> Result<Option<super::$section>, ParamsError> {
+                    Ok(self.map(|s| super::$section { $($member: s.$member as f32),+ }))
+                }
+            }
 
-    impl Widen<Option<actuator_params::CoilThermal>> for Option<super::CoilThermal> {
-        fn widen(&self) -> Option<actuator_params::CoilThermal> {
-            self.map(|t| actuator_params::CoilThermal {
-                thermal_resistance_k_per_w: t.thermal_resistance_k_per_w as f64,
-                time_constant_s: t.time_constant_s as f64,
-                max_rise_k: t.max_rise_k as f64,
-            })
-        }
+            impl Widen<Option<actuator_params::$section>> for Option<super::$section> {
+                fn widen(&self) -> Option<actuator_params::$section> {
+                    self.map(|s| actuator_params::$section { $($member: s.$member as f64),+ })
+                }
+            }
+        };
     }
-
-    impl Narrow<Option<super::CurrentMonitorScale>> for Option<actuator_params::CurrentMonitorScale> {
-        fn narrow(
-            &self,
-            _: &str,
-            _: &str,
-        ) -> Result<Option<super::CurrentMonitorScale>, ParamsError> {
-            Ok(self.map(|m| super::CurrentMonitorScale {
-                gain_a_per_count: m.gain_a_per_count as f32,
-                offset_a: m.offset_a as f32,
-            }))
-        }
-    }
-
-    impl Widen<Option<actuator_params::CurrentMonitorScale>> for Option<super::CurrentMonitorScale> {
-        fn widen(&self) -> Option<actuator_params::CurrentMonitorScale> {
-            self.map(|m| actuator_params::CurrentMonitorScale {
-                gain_a_per_count: m.gain_a_per_count as f64,
-                offset_a: m.offset_a as f64,
-            })
-        }
-    }
+    optional_section!(CoilThermal {
+        thermal_resistance_k_per_w,
+        time_constant_s,
+        max_rise_k
+    });
+    optional_section!(CurrentMonitorScale {
+        gain_a_per_count,
+        offset_a
+    });
 
     macro_rules! narrow_all {
         ($($($file:ident).+ => $($core:ident).+;)*) => {

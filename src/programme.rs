@@ -403,9 +403,18 @@ impl IdentificationProgramme {
         // A ramp between the top and 0 A, before and after a curve (module docs of `coil_heat`:
         // one term per part).
         let top_ramp_k = heat.ramp_heating_k(top_a, 0.0, ramp_ticks(top_a));
-        // What a stretch can reach from a cold coil, with the pause's own heating and the lag.
-        let from_cold = |heating_k: f32, hold_a: f32| {
-            heat.lag_margin_k() + heating_k + heat.steady_rise_k(hold_a)
+        // What a stretch of experiment `experiment` can reach from a cold coil, with the pause's
+        // own heating and the lag; refused at or above the limit.
+        let fits_from_cold = |experiment: usize, heating_k: f32, hold_a: f32| {
+            let reach_k = heat.lag_margin_k() + heating_k + heat.steady_rise_k(hold_a);
+            if reach_k >= heat.max_rise_k() {
+                Err(ProgrammeError::TooHot {
+                    experiment,
+                    heating_k: reach_k,
+                })
+            } else {
+                Ok(())
+            }
         };
         let mut forc_curve_heating_k = [0.0f32; LEVELS];
         for (j0, bound) in forc_curve_heating_k.iter_mut().enumerate() {
@@ -414,13 +423,7 @@ impl IdentificationProgramme {
             let down_k = heat.ramp_heating_k(top_a, line_a, self.segment_ticks(i));
             let up_k = heat.ramp_heating_k(line_a, top_a, self.segment_ticks(i + 1));
             *bound = 2.0 * top_ramp_k + down_k + up_k;
-            let reach_k = from_cold(*bound, forc_hold_a);
-            if reach_k >= heat.max_rise_k() {
-                return Err(ProgrammeError::TooHot {
-                    experiment: 0,
-                    heating_k: reach_k,
-                });
-            }
+            fits_from_cold(0, *bound, forc_hold_a)?;
         }
         let mut experiment_heating_k = [0.0f32; EXPERIMENTS];
         for (k, bound) in experiment_heating_k.iter_mut().enumerate() {
@@ -453,13 +456,7 @@ impl IdentificationProgramme {
             *bound = heat.heating_k(self.limit_a, conditioning_ticks)
                 + head_k
                 + heat.ramp_heating_k(end_a, 0.0, ramp_ticks(end_a));
-            let reach_k = from_cold(*bound, 0.0);
-            if reach_k >= heat.max_rise_k() {
-                return Err(ProgrammeError::TooHot {
-                    experiment: k,
-                    heating_k: reach_k,
-                });
-            }
+            fits_from_cold(k, *bound, 0.0)?;
         }
         self.heat = Some(HeatBudget {
             heat,

@@ -41,7 +41,8 @@ fn an_almost_anhysteretic_loop_is_carried_by_the_reversible_part() {
             }
         }
     }
-    let path = std::env::temp_dir().join(format!("maglab-anhysteretic-{}.csv", std::process::id()));
+    let folder = tempfile::tempdir().unwrap();
+    let path = folder.path().join("loops.csv");
     std::fs::write(&path, csv).unwrap();
     let spec = ColumnSpec {
         input: "h".into(),

@@ -1,20 +1,32 @@
 //! Every way a measurement file can be wrong gets an error naming file, line and column.
 
 use maglab_dataset::data::{load_dataset, load_measurement, DataError};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-fn write(name: &str, text: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("maglab-identify-data-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
+/// A file written into its own temporary folder, removed with it when dropped.
+struct Written {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for Written {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+fn write(name: &str, text: &str) -> Written {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
     std::fs::write(&path, text).unwrap();
-    path
+    Written { _dir: dir, path }
 }
 
 fn err(name: &str, text: &str) -> DataError {
     let path = write(name, text);
     let e = load_measurement(&path).expect_err("must be rejected");
-    assert_eq!(e.path, path);
+    assert_eq!(e.path, path.path);
     assert!(e.to_string().starts_with(&path.display().to_string()));
     e
 }
@@ -126,12 +138,12 @@ fn too_few_samples_are_rejected() {
 
 #[test]
 fn a_dataset_reads_csv_files_in_order_and_lists_the_rest() {
-    let dir = std::env::temp_dir().join(format!("maglab-identify-ds-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let folder = tempfile::tempdir().unwrap();
+    let dir = folder.path();
     std::fs::write(dir.join("b.csv"), GOOD).unwrap();
     std::fs::write(dir.join("a.csv"), GOOD).unwrap();
     std::fs::write(dir.join("notes.txt"), "rig notes").unwrap();
-    let ds = load_dataset(&dir).unwrap();
+    let ds = load_dataset(dir).unwrap();
     let names: Vec<_> = ds
         .measurements
         .iter()
@@ -141,7 +153,7 @@ fn a_dataset_reads_csv_files_in_order_and_lists_the_rest() {
     assert_eq!(ds.ignored, vec![dir.join("notes.txt")]);
     // One bad file fails the dataset, naming that file.
     std::fs::write(dir.join("c.csv"), "t_s,current_a,displacement_m\n0,0,0\n").unwrap();
-    let e = load_dataset(&dir).unwrap_err();
+    let e = load_dataset(dir).unwrap_err();
     assert_eq!(e.path, dir.join("c.csv"));
     let empty = dir.join("empty-folder");
     std::fs::create_dir_all(&empty).unwrap();
@@ -209,9 +221,8 @@ fn the_coil_current_column_is_read_checked_and_written_back() {
 
 #[test]
 fn a_dataset_records_the_coil_current_in_every_file_or_in_none() {
-    let dir = std::env::temp_dir().join(format!("maglab-coil-mixed-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let folder = tempfile::tempdir().unwrap();
+    let dir = folder.path();
     std::fs::write(dir.join("a.csv"), GOOD).unwrap();
     std::fs::write(
         dir.join("b.csv"),
@@ -219,9 +230,8 @@ fn a_dataset_records_the_coil_current_in_every_file_or_in_none() {
          0.002,0.3,3e-6,0.3\n",
     )
     .unwrap();
-    let e = load_dataset(&dir).unwrap_err();
+    let e = load_dataset(dir).unwrap_err();
     assert_eq!(e.path, dir.join("a.csv"));
     assert_eq!(e.column.as_deref(), Some("coil_current_a"));
     assert!(e.reason.contains("b.csv"), "{e}");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -128,8 +128,8 @@ fn phase_lag_scheme_recovers_eddy_resistance_and_damping() {
     .unwrap();
     let model = statics(&p);
     let noise = Normal::new(0.0, 1e-3 * model.stroke_m()).unwrap();
-    let dir = std::env::temp_dir().join(format!("maglab-dynamics-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let folder = tempfile::tempdir().unwrap();
+    let dir = folder.path();
 
     // Quasi-static: the FORC excitation of `maglab excite`, static model (6) of the relay field.
     let e = forc_excitation(&ExciteOptions {
@@ -179,7 +179,7 @@ fn phase_lag_scheme_recovers_eddy_resistance_and_damping() {
     println!("data generated in {:.1} s", started.elapsed().as_secs_f64());
 
     // The dataset convention (rule 2, spectrum): FORC quasi-static, the sines dynamic.
-    let split = load_split_dataset(&dir, &ClassifyOptions::default()).unwrap();
+    let split = load_split_dataset(dir, &ClassifyOptions::default()).unwrap();
     for c in &split.classification {
         println!("{}: {}", c.path.display(), c.reason);
     }
@@ -279,5 +279,4 @@ fn phase_lag_scheme_recovers_eddy_resistance_and_damping() {
     let rel = |a: f64, b: f64| (a / b - 1.0).abs();
     assert!(rel(pl.eddy_resistance_ohm, TRUE_R_OHM) <= PHASE_LAG_R_TOLERANCE);
     assert!(rel(pl.damping_ratio, TRUE_XI) <= 0.05);
-    std::fs::remove_dir_all(&dir).ok();
 }

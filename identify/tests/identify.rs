@@ -21,11 +21,11 @@ fn statics(p: &actuator_params::ActuatorParams) -> StaticModel {
     }
 }
 
-fn dataset(name: &str, current: &[f64], y: &[f64]) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("maglab-identify-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+/// A temporary folder holding one measurement `run.csv` (removed when dropped).
+fn dataset(current: &[f64], y: &[f64]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
     let t: Vec<f64> = (0..current.len()).map(|k| k as f64 * 1e-3).collect();
-    write_measurement(&dir.join("run.csv"), &t, current, y, None).unwrap();
+    write_measurement(&dir.path().join("run.csv"), &t, current, y, None).unwrap();
     dir
 }
 
@@ -94,8 +94,8 @@ fn forc_options(shift: f64) -> MassOptions {
 #[test]
 fn forc_dataset_identifies_to_a_valid_parameter_file() {
     let (p, current_a, y) = paper_forc_record(5);
-    let dir = dataset("forc", &current_a, &y);
-    let ds = load_dataset(&dir).unwrap();
+    let dir = dataset(&current_a, &y);
+    let ds = load_dataset(dir.path()).unwrap();
     let id = identify_masses(&ds, &p, "paper defaults", &forc_options(0.0)).unwrap();
     // Noise reaches below zero near M = 0: clipped and counted, not hidden.
     assert!(id.files[0].clipped_negative > 0);
@@ -118,7 +118,7 @@ fn forc_dataset_identifies_to_a_valid_parameter_file() {
     );
     let prov = &back.provenance.details;
     assert!(prov["not_identified"]["fields"].as_array().unwrap().len() == 3);
-    assert_eq!(prov["dataset"], dir.display().to_string());
+    assert_eq!(prov["dataset"], dir.path().display().to_string());
     assert!(prov.contains_key("date") && prov.contains_key("fit"));
 }
 
@@ -150,8 +150,8 @@ fn biased_data_are_identified_on_the_reach_with_a_band_below_it() {
             )
         })
         .collect();
-    let dir = dataset("biased", &current, &y);
-    let ds = load_dataset(&dir).unwrap();
+    let dir = dataset(&current, &y);
+    let ds = load_dataset(dir.path()).unwrap();
     let id = identify_masses(
         &ds,
         &p,
@@ -225,8 +225,8 @@ fn a_reversible_part_is_identified_with_the_masses() {
     let chi: Vec<f64> = shape.iter().map(|s| s * 2.0 * 0.2 * total / rise).collect();
     let (current_a, y) =
         noisy_forc_record(&p, &reference, 7, |h| reversible_a_per_m(&lines, &chi, h));
-    let dir = dataset("forc-reversible", &current_a, &y);
-    let ds = load_dataset(&dir).unwrap();
+    let dir = dataset(&current_a, &y);
+    let ds = load_dataset(dir.path()).unwrap();
     let run = |reversible: Reversible| {
         let base = forc_options(0.0);
         let options = MassOptions {
@@ -298,8 +298,8 @@ fn a_channel_skew_is_taken_out_of_the_masses_by_the_current_shift() {
     // The displacement of sample k is the rod's at sample k + 3: read 3 ms after the current.
     let skew = 3;
     let n = current_a.len();
-    let dir = dataset("skew", &current_a[..n - skew], &y[skew..]);
-    let ds = load_dataset(&dir).unwrap();
+    let dir = dataset(&current_a[..n - skew], &y[skew..]);
+    let ds = load_dataset(dir.path()).unwrap();
     let run =
         |shift: f64| identify_masses(&ds, &p, "paper defaults", &forc_options(shift)).unwrap();
     let ms = p.actuator.saturation_magnetization_a_per_m;

@@ -502,24 +502,24 @@ impl LazyProgress {
 mod tests {
     use super::*;
 
-    fn write(name: &str, text: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("maglab-simulate-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join(name);
+    /// `text` as file `name` in a temporary folder (removed when the folder is dropped).
+    fn write(name: &str, text: &str) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
-        path
+        (dir, path)
     }
 
     fn error_of(name: &str, text: &str) -> String {
         format!(
             "{:#}",
-            read_current_csv(&write(name, text), 1000.0).unwrap_err()
+            read_current_csv(&write(name, text).1, 1000.0).unwrap_err()
         )
     }
 
     #[test]
     fn current_file_is_held_between_samples_at_the_control_rate() {
-        let path = write("ok.csv", "t_s,current_a\n0,0.5\n0.0025,0.7\n0.004,0.1\n");
+        let (_dir, path) = write("ok.csv", "t_s,current_a\n0,0.5\n0.0025,0.7\n0.004,0.1\n");
         // 1 kHz: samples at 0, 1, 2, 3, 4 ms hold the last value at or before each time.
         let currents = read_current_csv(&path, 1000.0).unwrap();
         assert_eq!(currents, vec![0.5, 0.5, 0.5, 0.7, 0.1]);
@@ -555,7 +555,7 @@ mod tests {
         let e = error_of("columns.csv", "t_s,current_a\n0,0.5\n0.001,0.5,7\n");
         assert!(e.contains("columns.csv: line 3"), "{e}");
         // A measurement file (with its displacement column) is a current file too.
-        let path = write(
+        let (_dir, path) = write(
             "measurement.csv",
             "t_s,current_a,displacement_m\n0,0.5,1e-6\n0.001,0.7,2e-6\n0.002,0.1,3e-6\n",
         );

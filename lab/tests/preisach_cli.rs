@@ -29,7 +29,8 @@ fn number_after(text: &str, key: &str) -> f64 {
 
 #[test]
 fn defaults_choose_periodic_affine_and_the_models_grouping() {
-    let dir = tempdir("defaults");
+    let folder = tempfile::tempdir().unwrap();
+    let dir = folder.path();
     let model = dir.join("ferrite.json");
     let file = data();
     let fit = maglab(&[
@@ -90,7 +91,8 @@ fn defaults_choose_periodic_affine_and_the_models_grouping() {
 
 #[test]
 fn a_narrow_grid_with_negative_ends_agrees_with_its_own_fit() {
-    let dir = tempdir("narrow");
+    let folder = tempfile::tempdir().unwrap();
+    let dir = folder.path();
     let model = dir.join("narrow.json");
     let file = data();
     let fit = maglab(&[
@@ -126,10 +128,4 @@ fn a_narrow_grid_with_negative_ends_agrees_with_its_own_fit() {
         (predicted - fitted).abs() <= 1e-3 * fitted,
         "the model disagrees with its own fit: regression RMS residual {fitted}, prediction RMS {predicted}"
     );
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("maglab-preisach-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }

@@ -56,33 +56,34 @@ impl CoreLiteral for Option<Vec<f64>> {
     }
 }
 
-impl CoreLiteral for Option<crate::CoilThermal> {
-    fn literal(&self) -> String {
-        match self {
-            None => "None".into(),
-            Some(t) => format!(
-                "Some(CoilThermal {{ thermal_resistance_k_per_w: {}, time_constant_s: {}, \
-                 max_rise_k: {} }})",
-                t.thermal_resistance_k_per_w.literal(),
-                t.time_constant_s.literal(),
-                t.max_rise_k.literal()
-            ),
+/// An optional section as `Some(Section { member: literal, .. })` or `None`.
+macro_rules! optional_section_literal {
+    ($section:ident { $($member:ident),+ }) => {
+        impl CoreLiteral for Option<crate::$section> {
+            fn literal(&self) -> String {
+                match self {
+                    None => "None".into(),
+                    Some(s) => {
+                        let members: Vec<String> = [$((stringify!($member), s.$member.literal())),+]
+                            .iter()
+                            .map(|(name, value)| format!("{name}: {value}"))
+                            .collect();
+                        format!("Some({} {{ {} }})", stringify!($section), members.join(", "))
+                    }
+                }
+            }
         }
-    }
+    };
 }
-
-impl CoreLiteral for Option<crate::CurrentMonitorScale> {
-    fn literal(&self) -> String {
-        match self {
-            None => "None".into(),
-            Some(m) => format!(
-                "Some(CurrentMonitorScale {{ gain_a_per_count: {}, offset_a: {} }})",
-                m.gain_a_per_count.literal(),
-                m.offset_a.literal()
-            ),
-        }
-    }
-}
+optional_section_literal!(CoilThermal {
+    thermal_resistance_k_per_w,
+    time_constant_s,
+    max_rise_k
+});
+optional_section_literal!(CurrentMonitorScale {
+    gain_a_per_count,
+    offset_a
+});
 
 /// The Rust source of the baked constants.
 pub fn rust_constants(params: &ActuatorParams, source_path: &str) -> String {

@@ -219,52 +219,64 @@ fn a_valid_range_above_the_rest_position_is_refused_for_a_firmware_image_only() 
         .expect("the default file is fit for a firmware image");
 }
 
+/// The valid document with `section` set to `entry`.
+fn with_section(section: &str, entry: &serde_json::Value) -> String {
+    let mut v: serde_json::Value = serde_json::from_str(&valid_text()).expect("JSON");
+    v[section] = entry.clone();
+    serde_json::to_string_pretty(&v).expect("JSON")
+}
+
+/// Each `(entry, field, reason)` set as `section` is rejected naming `field` with `reason`.
+fn assert_rejected(section: &str, rejected: &[(serde_json::Value, &str, &str)]) {
+    for (entry, field, reason) in rejected {
+        let err = ActuatorParams::parse(&with_section(section, entry), "section.json")
+            .expect_err("a bad section value must be rejected");
+        assert_eq!(err.field, *field, "{entry}: {err}");
+        assert!(err.reason.contains(reason), "{entry}: {err}");
+    }
+}
+
 /// The optional `datasheet` section (host tools' priors, not in the cases above: the firmware
 /// bakes none of it): each bad value is rejected naming its field; a valid one reads back.
 #[test]
 fn datasheet_values_are_checked_and_read_back() {
-    let with = |entry: serde_json::Value| {
-        let mut v: serde_json::Value = serde_json::from_str(&valid_text()).expect("JSON");
-        v["datasheet"] = entry;
-        serde_json::to_string_pretty(&v).expect("JSON")
-    };
-    let rejected = [
-        (
-            serde_json::json!({"sensor_bandwidth_hz": {"value": 100.0, "plus_minus": 150.0}}),
-            "datasheet.sensor_bandwidth_hz",
-            "must lie above 0",
-        ),
-        (
-            serde_json::json!({"sensor_delay_s": {"value": -1e-5, "plus_minus": 1e-6}}),
-            "datasheet.sensor_delay_s",
-            "must be >= 0",
-        ),
-        (
-            serde_json::json!({"load_mass_kg": {"value": 0.01, "plus_minus": -0.001}}),
-            "datasheet.load_mass_kg.plus_minus",
-            "must be >= 0",
-        ),
-        (
-            serde_json::json!({"sensor_bandwidth": {"value": 1.0, "plus_minus": 0.1}}),
-            "datasheet.sensor_bandwidth",
-            "unknown field `sensor_bandwidth`",
-        ),
-        (
-            serde_json::json!({"coil_inductance_h": {"value": 0.008}}),
-            "datasheet.coil_inductance_h.plus_minus",
-            "missing field",
-        ),
-    ];
-    for (entry, field, reason) in rejected {
-        let err = ActuatorParams::parse(&with(entry.clone()), "sheet.json")
-            .expect_err("a bad datasheet value must be rejected");
-        assert_eq!(err.field, field, "{entry}: {err}");
-        assert!(err.reason.contains(reason), "{entry}: {err}");
-    }
-    let good = with(serde_json::json!({
+    assert_rejected(
+        "datasheet",
+        &[
+            (
+                serde_json::json!({"sensor_bandwidth_hz": {"value": 100.0, "plus_minus": 150.0}}),
+                "datasheet.sensor_bandwidth_hz",
+                "must lie above 0",
+            ),
+            (
+                serde_json::json!({"sensor_delay_s": {"value": -1e-5, "plus_minus": 1e-6}}),
+                "datasheet.sensor_delay_s",
+                "must be >= 0",
+            ),
+            (
+                serde_json::json!({"load_mass_kg": {"value": 0.01, "plus_minus": -0.001}}),
+                "datasheet.load_mass_kg.plus_minus",
+                "must be >= 0",
+            ),
+            (
+                serde_json::json!({"sensor_bandwidth": {"value": 1.0, "plus_minus": 0.1}}),
+                "datasheet.sensor_bandwidth",
+                "unknown field `sensor_bandwidth`",
+            ),
+            (
+                serde_json::json!({"coil_inductance_h": {"value": 0.008}}),
+                "datasheet.coil_inductance_h.plus_minus",
+                "missing field",
+            ),
+        ],
+    );
+    let good = with_section(
+        "datasheet",
+        &serde_json::json!({
         "sensor_delay_s": {"value": 5e-5, "plus_minus": 8e-5},
         "amplifier_bandwidth_hz": {"value": 2000.0, "plus_minus": 200.0}
-    }));
+        }),
+    );
     let p = ActuatorParams::parse(&good, "sheet.json").expect("valid");
     let d = p.datasheet.expect("read");
     let (lo, hi) = d.sensor_delay_s.expect("read").band_from_zero();
@@ -282,37 +294,32 @@ fn datasheet_values_are_checked_and_read_back() {
 /// or missing member is rejected naming it; a valid one reads back and bakes.
 #[test]
 fn coil_thermal_values_are_checked_read_back_and_baked() {
-    let with = |entry: serde_json::Value| {
-        let mut v: serde_json::Value = serde_json::from_str(&valid_text()).expect("JSON");
-        v["coil_thermal"] = entry;
-        serde_json::to_string_pretty(&v).expect("JSON")
-    };
-    let rejected = [
-        (
-            serde_json::json!({"thermal_resistance_k_per_w": 4.0, "time_constant_s": 0.0, "max_rise_k": 20.0}),
-            "coil_thermal.time_constant_s",
-            "must be finite and > 0",
-        ),
-        (
-            serde_json::json!({"thermal_resistance_k_per_w": -4.0, "time_constant_s": 300.0, "max_rise_k": 20.0}),
-            "coil_thermal.thermal_resistance_k_per_w",
-            "must be finite and > 0",
-        ),
-        (
-            serde_json::json!({"thermal_resistance_k_per_w": 4.0, "time_constant_s": 300.0}),
-            "coil_thermal.max_rise_k",
-            "missing field",
-        ),
-    ];
-    for (entry, field, reason) in rejected {
-        let err = ActuatorParams::parse(&with(entry.clone()), "coil.json")
-            .expect_err("a bad coil_thermal value must be rejected");
-        assert_eq!(err.field, field, "{entry}: {err}");
-        assert!(err.reason.contains(reason), "{entry}: {err}");
-    }
-    let good = with(serde_json::json!({
-        "thermal_resistance_k_per_w": 4.0, "time_constant_s": 300.0, "max_rise_k": 20.0
-    }));
+    assert_rejected(
+        "coil_thermal",
+        &[
+            (
+                serde_json::json!({"thermal_resistance_k_per_w": 4.0, "time_constant_s": 0.0, "max_rise_k": 20.0}),
+                "coil_thermal.time_constant_s",
+                "must be finite and > 0",
+            ),
+            (
+                serde_json::json!({"thermal_resistance_k_per_w": -4.0, "time_constant_s": 300.0, "max_rise_k": 20.0}),
+                "coil_thermal.thermal_resistance_k_per_w",
+                "must be finite and > 0",
+            ),
+            (
+                serde_json::json!({"thermal_resistance_k_per_w": 4.0, "time_constant_s": 300.0}),
+                "coil_thermal.max_rise_k",
+                "missing field",
+            ),
+        ],
+    );
+    let good = with_section(
+        "coil_thermal",
+        &serde_json::json!({
+            "thermal_resistance_k_per_w": 4.0, "time_constant_s": 300.0, "max_rise_k": 20.0
+        }),
+    );
     let p = ActuatorParams::parse(&good, "coil.json").expect("valid");
     assert_eq!(
         p.coil_thermal.map(|t| t.max_rise_k),
@@ -334,34 +341,30 @@ fn coil_thermal_values_are_checked_read_back_and_baked() {
 /// The optional `current_monitor` section (baked: the measurement image's second ADC channel).
 #[test]
 fn current_monitor_values_are_checked_read_back_and_baked() {
-    let with = |entry: serde_json::Value| {
-        let mut v: serde_json::Value = serde_json::from_str(&valid_text()).expect("JSON");
-        v["current_monitor"] = entry;
-        serde_json::to_string_pretty(&v).expect("JSON")
-    };
-    for (entry, field, reason) in [
-        (
-            serde_json::json!({"gain_a_per_count": 0.0, "offset_a": -5.0}),
-            "current_monitor.gain_a_per_count",
-            "must be finite and non-zero",
-        ),
-        (
-            serde_json::json!({"gain_a_per_count": 0.002}),
-            "current_monitor.offset_a",
-            "missing field",
-        ),
-        (
-            serde_json::json!({"gain_a_per_count": 0.002, "offset_a": -5.0, "bits": 12}),
-            "current_monitor.bits",
-            "unknown field",
-        ),
-    ] {
-        let err = ActuatorParams::parse(&with(entry.clone()), "monitor.json")
-            .expect_err("a bad current_monitor value must be rejected");
-        assert_eq!(err.field, field, "{entry}: {err}");
-        assert!(err.reason.contains(reason), "{entry}: {err}");
-    }
-    let good = with(serde_json::json!({"gain_a_per_count": 0.002442, "offset_a": -5.0}));
+    assert_rejected(
+        "current_monitor",
+        &[
+            (
+                serde_json::json!({"gain_a_per_count": 0.0, "offset_a": -5.0}),
+                "current_monitor.gain_a_per_count",
+                "must be finite and non-zero",
+            ),
+            (
+                serde_json::json!({"gain_a_per_count": 0.002}),
+                "current_monitor.offset_a",
+                "missing field",
+            ),
+            (
+                serde_json::json!({"gain_a_per_count": 0.002, "offset_a": -5.0, "bits": 12}),
+                "current_monitor.bits",
+                "unknown field",
+            ),
+        ],
+    );
+    let good = with_section(
+        "current_monitor",
+        &serde_json::json!({"gain_a_per_count": 0.002442, "offset_a": -5.0}),
+    );
     let p = ActuatorParams::parse(&good, "monitor.json").expect("valid");
     let again = ActuatorParams::parse(&p.to_json_pretty(), "again").expect("round trip");
     assert_eq!(again.current_monitor, p.current_monitor);

@@ -156,6 +156,29 @@ impl Kind {
         }
     }
 
+    /// Right under the strict scoring: the named set (sorted) is [`Kind::expected`].
+    pub fn strictly_right(&self, named: &[String]) -> bool {
+        named.iter().map(String::as_str).eq(self.expected())
+    }
+
+    /// Right under the graded scoring: the truth is in the verdict and it names at most two
+    /// effects. A single effect X: X named alone or beside one other (a pair, or X with the rest
+    /// `unexplained`), "partly explained by X", or "X or Y"; a pair: both named; an
+    /// out-of-library effect: `unexplained` (in either of its grades: no library effect named
+    /// as the explanation); noise only: `none`.
+    pub fn graded_right(&self, said: &Said) -> bool {
+        match self {
+            Kind::Single(e) => {
+                (said.named.len() <= 2 && said.named.iter().any(|n| n == e))
+                    || said.partly_explained == Some(*e)
+                    || said.either.iter().any(|n| n == e)
+            }
+            Kind::Pair(..) => self.strictly_right(said.named),
+            Kind::OutOfLibrary(_) => said.verdict == "unexplained",
+            Kind::NoiseOnly => said.verdict == "none" && said.grade == "none",
+        }
+    }
+
     /// A short label for tables: the effect, `a+b`, `(backlash)`, `noise`.
     pub fn label(&self) -> String {
         match self {
@@ -165,6 +188,21 @@ impl Kind {
             Kind::NoiseOnly => "noise only".into(),
         }
     }
+}
+
+/// What a diagnosis said, as its report (`diagnosis.json`) writes it: what the scorings read.
+#[derive(Debug, Clone, Copy)]
+pub struct Said<'a> {
+    /// The verdict.
+    pub verdict: &'a str,
+    /// The verdict and the additional effects, sorted.
+    pub named: &'a [String],
+    /// The grade's name (`none`, `effect`, `pair`, `either`, `partly_explained`, `unexplained`).
+    pub grade: &'a str,
+    /// The effect of a `partly_explained` grade.
+    pub partly_explained: Option<&'a str>,
+    /// The two effects of an `either` grade (empty otherwise).
+    pub either: &'a [String],
 }
 
 /// A drawn case.
@@ -861,6 +899,157 @@ pub fn kinds(seed: u64, count: usize) -> Vec<Kind> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The two scorings on each grade a diagnosis gives.
+    #[test]
+    fn the_graded_scoring_counts_the_truth_in_a_verdict_of_at_most_two_effects() {
+        let names = |v: &[&str]| -> Vec<String> { v.iter().map(|s| s.to_string()).collect() };
+        let said = |verdict: &'static str,
+                    named: &'static [&'static str],
+                    grade: &'static str,
+                    partly: Option<&'static str>,
+                    either: &'static [&'static str]| {
+            (verdict, names(named), grade, partly, names(either))
+        };
+        let amp = Kind::Single("amplifier_bandwidth");
+        let pair = Kind::Pair("sensor_dynamics", "amplifier_bandwidth");
+        let cases = [
+            // (kind, what was said, strict, graded)
+            (
+                &amp,
+                said(
+                    "amplifier_bandwidth",
+                    &["amplifier_bandwidth"],
+                    "effect",
+                    None,
+                    &[],
+                ),
+                true,
+                true,
+            ),
+            // The amplifier beside an unexplained rest: named, at most two.
+            (
+                &amp,
+                said(
+                    "unexplained",
+                    &["amplifier_bandwidth", "unexplained"],
+                    "unexplained",
+                    None,
+                    &[],
+                ),
+                false,
+                true,
+            ),
+            (
+                &amp,
+                said(
+                    "sensor_dynamics",
+                    &["sensor_dynamics"],
+                    "either",
+                    None,
+                    &["sensor_dynamics", "amplifier_bandwidth"],
+                ),
+                false,
+                true,
+            ),
+            (
+                &amp,
+                said(
+                    "unexplained",
+                    &["unexplained"],
+                    "partly_explained",
+                    Some("amplifier_bandwidth"),
+                    &[],
+                ),
+                false,
+                true,
+            ),
+            (
+                &amp,
+                said(
+                    "unexplained",
+                    &["unexplained"],
+                    "partly_explained",
+                    Some("sensor_dynamics"),
+                    &[],
+                ),
+                false,
+                false,
+            ),
+            (
+                &amp,
+                said("sensor_dynamics", &["sensor_dynamics"], "effect", None, &[]),
+                false,
+                false,
+            ),
+            // A pair needs both, whatever the grade.
+            (
+                &pair,
+                said(
+                    "amplifier_bandwidth",
+                    &["amplifier_bandwidth", "sensor_dynamics"],
+                    "pair",
+                    None,
+                    &[],
+                ),
+                true,
+                true,
+            ),
+            (
+                &pair,
+                said(
+                    "unexplained",
+                    &["amplifier_bandwidth", "unexplained"],
+                    "unexplained",
+                    None,
+                    &[],
+                ),
+                false,
+                false,
+            ),
+            (
+                &Kind::OutOfLibrary("backlash"),
+                said(
+                    "unexplained",
+                    &["unexplained"],
+                    "partly_explained",
+                    Some("mechanical_load"),
+                    &[],
+                ),
+                true,
+                true,
+            ),
+            (
+                &Kind::OutOfLibrary("backlash"),
+                said("mechanical_load", &["mechanical_load"], "effect", None, &[]),
+                false,
+                false,
+            ),
+            (
+                &Kind::NoiseOnly,
+                said("none", &["none"], "none", None, &[]),
+                true,
+                true,
+            ),
+            (
+                &Kind::NoiseOnly,
+                said("unexplained", &["unexplained"], "unexplained", None, &[]),
+                false,
+                false,
+            ),
+        ];
+        for (kind, (verdict, named, grade, partly, either), strict, graded) in cases {
+            let s = Said {
+                verdict,
+                named: &named,
+                grade,
+                partly_explained: partly,
+                either: &either,
+            };
+            assert_eq!(kind.strictly_right(&named), strict, "{kind:?} {named:?}");
+            assert_eq!(kind.graded_right(&s), graded, "{kind:?} {named:?} {grade}");
+        }
+    }
 
     #[test]
     fn a_varied_design_stays_within_its_documented_bounds() {

@@ -68,9 +68,8 @@ pub fn run_case(
         .chain(d.additional_effects.iter().cloned())
         .collect();
     named.sort();
-    let expected: Vec<String> = case.kind.expected().iter().map(|s| s.to_string()).collect();
     Outcome {
-        correct: named == expected,
+        correct: case.kind.strictly_right(&named),
         graded_correct: graded_right(&case.kind, &named, &d),
         named,
         seconds,
@@ -79,26 +78,15 @@ pub fn run_case(
     }
 }
 
-/// The graded scoring (issue's rule): a verdict is right when the truth is in it and it names at
-/// most two effects. A single effect X: X named alone or in a pair, "partly explained by X", or
-/// "X or Y"; a pair: both named; an out-of-library effect: `unexplained` (in either of its
-/// grades: no library effect named as the explanation); noise only: `none`.
+/// The graded scoring ([`Kind::graded_right`]) of diagnosis `d`, whose named set is `named`.
 pub fn graded_right(kind: &Kind, named: &[String], d: &Diagnosis) -> bool {
-    use maglab_diagnose::diagnosis::grade::Grade;
-    match kind {
-        Kind::Single(e) => {
-            (named.len() <= 2 && named.iter().any(|n| n == e))
-                || d.partly_explained.as_ref().is_some_and(|p| p.effect == *e)
-                || d.either.iter().any(|n| n == e)
-        }
-        Kind::Pair(..) => {
-            let mut expected: Vec<String> = kind.expected().iter().map(|s| s.to_string()).collect();
-            expected.sort();
-            named == expected.as_slice()
-        }
-        Kind::OutOfLibrary(_) => d.verdict == "unexplained",
-        Kind::NoiseOnly => d.verdict == "none" && d.grade == Grade::None,
-    }
+    kind.graded_right(&suite::Said {
+        verdict: &d.verdict,
+        named,
+        grade: d.grade.name(),
+        partly_explained: d.partly_explained.as_ref().map(|p| p.effect.as_str()),
+        either: &d.either,
+    })
 }
 
 /// What the verdict said, graded: `X`, `X+Y`, `partly X`, `X or Y`, `unexplained`, `none`.
