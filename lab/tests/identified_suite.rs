@@ -205,11 +205,7 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
     };
     let graded = case.kind.graded_right(&said);
     let strict = case.kind.strictly_right(&named);
-    let graded_label = match (partly, either.as_slice()) {
-        (Some(p), _) => format!("partly {p}"),
-        (None, [a, b]) => format!("{a} or {b}"),
-        _ => named.join("+"),
-    };
+    let graded_label = said.label();
     let advice = d["advice"]
         .as_array()
         .into_iter()

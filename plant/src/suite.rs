@@ -205,6 +205,17 @@ pub struct Said<'a> {
     pub either: &'a [String],
 }
 
+impl Said<'_> {
+    /// The verdict as graded: `partly X`, `X or Y`, else the named set joined by `+`.
+    pub fn label(&self) -> String {
+        match (self.partly_explained, self.either) {
+            (Some(p), _) => format!("partly {p}"),
+            (None, [a, b]) => format!("{a} or {b}"),
+            _ => self.named.join("+"),
+        }
+    }
+}
+
 /// A drawn case.
 #[derive(Debug, Clone)]
 pub struct Case {
@@ -903,152 +914,88 @@ mod tests {
     /// The two scorings on each grade a diagnosis gives.
     #[test]
     fn the_graded_scoring_counts_the_truth_in_a_verdict_of_at_most_two_effects() {
-        let names = |v: &[&str]| -> Vec<String> { v.iter().map(|s| s.to_string()).collect() };
-        let said = |verdict: &'static str,
-                    named: &'static [&'static str],
-                    grade: &'static str,
-                    partly: Option<&'static str>,
-                    either: &'static [&'static str]| {
-            (verdict, names(named), grade, partly, names(either))
+        const AMP: &str = "amplifier_bandwidth";
+        const SENSOR: &str = "sensor_dynamics";
+        const NONE: &str = "none";
+        const UNEXPLAINED: &str = "unexplained";
+        let list = |joined: &str| -> Vec<String> {
+            joined
+                .split('+')
+                .filter(|n| !n.is_empty())
+                .map(String::from)
+                .collect()
         };
-        let amp = Kind::Single("amplifier_bandwidth");
-        let pair = Kind::Pair("sensor_dynamics", "amplifier_bandwidth");
-        let cases = [
-            // (kind, what was said, strict, graded)
-            (
-                &amp,
-                said(
-                    "amplifier_bandwidth",
-                    &["amplifier_bandwidth"],
-                    "effect",
-                    None,
-                    &[],
-                ),
-                true,
-                true,
-            ),
-            // The amplifier beside an unexplained rest: named, at most two.
-            (
-                &amp,
-                said(
-                    "unexplained",
-                    &["amplifier_bandwidth", "unexplained"],
-                    "unexplained",
-                    None,
-                    &[],
-                ),
-                false,
-                true,
-            ),
-            (
-                &amp,
-                said(
-                    "sensor_dynamics",
-                    &["sensor_dynamics"],
-                    "either",
-                    None,
-                    &["sensor_dynamics", "amplifier_bandwidth"],
-                ),
-                false,
-                true,
-            ),
-            (
-                &amp,
-                said(
-                    "unexplained",
-                    &["unexplained"],
-                    "partly_explained",
-                    Some("amplifier_bandwidth"),
-                    &[],
-                ),
-                false,
-                true,
-            ),
-            (
-                &amp,
-                said(
-                    "unexplained",
-                    &["unexplained"],
-                    "partly_explained",
-                    Some("sensor_dynamics"),
-                    &[],
-                ),
-                false,
-                false,
-            ),
-            (
-                &amp,
-                said("sensor_dynamics", &["sensor_dynamics"], "effect", None, &[]),
-                false,
-                false,
-            ),
-            // A pair needs both, whatever the grade.
-            (
-                &pair,
-                said(
-                    "amplifier_bandwidth",
-                    &["amplifier_bandwidth", "sensor_dynamics"],
-                    "pair",
-                    None,
-                    &[],
-                ),
-                true,
-                true,
-            ),
-            (
-                &pair,
-                said(
-                    "unexplained",
-                    &["amplifier_bandwidth", "unexplained"],
-                    "unexplained",
-                    None,
-                    &[],
-                ),
-                false,
-                false,
-            ),
-            (
-                &Kind::OutOfLibrary("backlash"),
-                said(
-                    "unexplained",
-                    &["unexplained"],
-                    "partly_explained",
-                    Some("mechanical_load"),
-                    &[],
-                ),
-                true,
-                true,
-            ),
-            (
-                &Kind::OutOfLibrary("backlash"),
-                said("mechanical_load", &["mechanical_load"], "effect", None, &[]),
-                false,
-                false,
-            ),
-            (
-                &Kind::NoiseOnly,
-                said("none", &["none"], "none", None, &[]),
-                true,
-                true,
-            ),
-            (
-                &Kind::NoiseOnly,
-                said("unexplained", &["unexplained"], "unexplained", None, &[]),
-                false,
-                false,
-            ),
-        ];
-        for (kind, (verdict, named, grade, partly, either), strict, graded) in cases {
-            let s = Said {
+        // `named` and `either` joined by `+` (sorted as a report's named set is); `partly` empty
+        // for none. Checks both scorings of what was said against `kind`.
+        let check = |kind: Kind,
+                     (verdict, named, grade): (&str, &str, &str),
+                     (partly, either): (&str, &str),
+                     (strict, graded): (bool, bool)| {
+            let (named, either) = (list(named), list(either));
+            let said = Said {
                 verdict,
                 named: &named,
                 grade,
-                partly_explained: partly,
+                partly_explained: (!partly.is_empty()).then_some(partly),
                 either: &either,
             };
             assert_eq!(kind.strictly_right(&named), strict, "{kind:?} {named:?}");
-            assert_eq!(kind.graded_right(&s), graded, "{kind:?} {named:?} {grade}");
-        }
+            assert_eq!(
+                kind.graded_right(&said),
+                graded,
+                "{kind:?} {named:?} {grade}"
+            );
+        };
+        let amp = || Kind::Single(AMP);
+        let pair = || Kind::Pair(SENSOR, AMP);
+        let amp_rest = "amplifier_bandwidth+unexplained";
+        let both = "amplifier_bandwidth+sensor_dynamics";
+        check(amp(), (AMP, AMP, "effect"), ("", ""), (true, true));
+        // The amplifier beside an unexplained rest: named, at most two.
+        check(
+            amp(),
+            (UNEXPLAINED, amp_rest, UNEXPLAINED),
+            ("", ""),
+            (false, true),
+        );
+        check(amp(), (SENSOR, SENSOR, "either"), ("", both), (false, true));
+        check(
+            amp(),
+            (UNEXPLAINED, UNEXPLAINED, "partly_explained"),
+            (AMP, ""),
+            (false, true),
+        );
+        check(
+            amp(),
+            (UNEXPLAINED, UNEXPLAINED, "partly_explained"),
+            (SENSOR, ""),
+            (false, false),
+        );
+        check(amp(), (SENSOR, SENSOR, "effect"), ("", ""), (false, false));
+        // A pair needs both, whatever the grade.
+        check(pair(), (AMP, both, "pair"), ("", ""), (true, true));
+        check(
+            pair(),
+            (UNEXPLAINED, amp_rest, UNEXPLAINED),
+            ("", ""),
+            (false, false),
+        );
+        let backlash = || Kind::OutOfLibrary("backlash");
+        let load = "mechanical_load";
+        check(
+            backlash(),
+            (UNEXPLAINED, UNEXPLAINED, "partly_explained"),
+            (load, ""),
+            (true, true),
+        );
+        check(backlash(), (load, load, "effect"), ("", ""), (false, false));
+        check(Kind::NoiseOnly, (NONE, NONE, NONE), ("", ""), (true, true));
+        check(
+            Kind::NoiseOnly,
+            (UNEXPLAINED, UNEXPLAINED, UNEXPLAINED),
+            ("", ""),
+            (false, false),
+        );
     }
 
     #[test]

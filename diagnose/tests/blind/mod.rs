@@ -78,27 +78,25 @@ pub fn run_case(
     }
 }
 
-/// The graded scoring ([`Kind::graded_right`]) of diagnosis `d`, whose named set is `named`.
-pub fn graded_right(kind: &Kind, named: &[String], d: &Diagnosis) -> bool {
-    kind.graded_right(&suite::Said {
+/// What diagnosis `d`, whose named set is `named`, said, as the suite's scorings read it.
+fn said<'a>(named: &'a [String], d: &'a Diagnosis) -> suite::Said<'a> {
+    suite::Said {
         verdict: &d.verdict,
         named,
         grade: d.grade.name(),
         partly_explained: d.partly_explained.as_ref().map(|p| p.effect.as_str()),
         either: &d.either,
-    })
+    }
+}
+
+/// The graded scoring ([`Kind::graded_right`]) of diagnosis `d`, whose named set is `named`.
+pub fn graded_right(kind: &Kind, named: &[String], d: &Diagnosis) -> bool {
+    kind.graded_right(&said(named, d))
 }
 
 /// What the verdict said, graded: `X`, `X+Y`, `partly X`, `X or Y`, `unexplained`, `none`.
 pub fn graded_label(o: &Outcome) -> String {
-    let d = &o.diagnosis;
-    if let Some(p) = &d.partly_explained {
-        format!("partly {}", p.effect)
-    } else if let [a, b] = d.either.as_slice() {
-        format!("{a} or {b}")
-    } else {
-        o.named.join("+")
-    }
+    said(&o.named, &o.diagnosis).label()
 }
 
 /// Right per kind of case, strict and graded, and how often each grade was given, as Markdown.
