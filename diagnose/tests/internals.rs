@@ -338,6 +338,56 @@ mod grade {
     }
 
     #[test]
+    fn either_when_equal_on_training_and_apart_by_less_than_the_training_misfit() {
+        // Noise 1e-7 m; the winner leaves 2e-7 m RMS on training: 3e-14 m² systematic energy.
+        let noise = 1e-7;
+        let with = |effect: &str, training_m: f64, held_out_m: f64| {
+            let mut c = candidate(effect, held_out_m, &[], true);
+            c.training_rms_m = training_m;
+            c
+        };
+        let winner = with("mechanical_load", 2.0e-7, 1.5e-7);
+        let grade_of = |rival: CandidateResult| {
+            grade(
+                "mechanical_load",
+                &[],
+                &[winner.clone(), rival],
+                (noise, 1e-4),
+                false,
+            )
+        };
+        // Held out: 3e-14 against 1.25e-14 m², 1.75e-14 apart, within the training misfit.
+        let g = grade_of(with("sensor_dynamics", 2.0e-7, 2.0e-7));
+        assert_eq!(g.grade, Grade::Either);
+        assert_eq!(g.either, ["mechanical_load", "sensor_dynamics"]);
+        assert!(g.either_reason.contains("training"), "{}", g.either_reason);
+        // 4e-14 m² apart: more than the misfit, the held-out experiments separate them.
+        assert_eq!(
+            grade_of(with("sensor_dynamics", 2.0e-7, 2.5e-7)).grade,
+            Grade::Effect
+        );
+        // Worse on training (by more than `EQUAL_ON_TRAINING`): the training separates them.
+        assert_eq!(
+            grade_of(with("sensor_dynamics", 2.1e-7, 2.0e-7)).grade,
+            Grade::Effect
+        );
+        // A fit that leaves only noise on training leaves no room: separated.
+        let exact = with("mechanical_load", 1.0e-7, 1.5e-7);
+        let rival = with("sensor_dynamics", 1.0e-7, 2.0e-7);
+        assert_eq!(
+            grade(
+                "mechanical_load",
+                &[],
+                &[exact, rival],
+                (noise, 1e-4),
+                false
+            )
+            .grade,
+            Grade::Effect
+        );
+    }
+
+    #[test]
     fn an_eddy_path_is_either_it_or_a_current_loop_yielding_to_the_back_emf() {
         let eddy = candidate("eddy_frequency_dependence", 1.0e-7, &[], true);
         let amp = candidate("amplifier_bandwidth", 5.0e-7, &[], false);

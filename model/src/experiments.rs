@@ -18,9 +18,9 @@ pub struct ExperimentInfo {
     pub name: String,
     /// Fundamental (dominant) frequency of the current, Hz.
     pub fundamental_hz: f64,
-    /// Half the peak-to-peak current, A.
+    /// Half the peak-to-peak current after `settle_samples`, A.
     pub amplitude_a: f64,
-    /// Mean current, A.
+    /// Mean current after `settle_samples`, A.
     pub bias_a: f64,
     /// Samples before scoring starts.
     pub settle_samples: usize,
@@ -70,7 +70,7 @@ pub fn displacement_range(measurements: &[Measurement], which: &[usize]) -> f64 
     (hi - lo).max(0.0)
 }
 
-/// Fundamental, amplitude, bias, settling of each record.
+/// Fundamental, settling, and the amplitude and bias after settling, of each record.
 pub fn describe(measurements: &[Measurement], rate_hz: f64) -> Vec<ExperimentInfo> {
     measurements
         .iter()
@@ -78,11 +78,14 @@ pub fn describe(measurements: &[Measurement], rate_hz: f64) -> Vec<ExperimentInf
             let n = m.len();
             let f = spectrum::dominant_frequency_hz(&m.current_a, rate_hz)
                 .unwrap_or(rate_hz / n as f64);
-            let (lo, hi) = m
-                .current_a
+            let settle = ((rate_hz / f).max(0.02 * n as f64) as usize).min(n / 4);
+            // Amplitude and bias of the settled part: a measured coil current opens with the
+            // amplifier's transient from where the record before left it (a sine after a sweep
+            // that ended at full current), which is no part of the excitation.
+            let settled = &m.current_a[settle..];
+            let (lo, hi) = settled
                 .iter()
                 .fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-            let settle = ((rate_hz / f).max(0.02 * n as f64) as usize).min(n / 4);
             ExperimentInfo {
                 name: m
                     .path
@@ -91,7 +94,7 @@ pub fn describe(measurements: &[Measurement], rate_hz: f64) -> Vec<ExperimentInf
                     .unwrap_or_default(),
                 fundamental_hz: f,
                 amplitude_a: 0.5 * (hi - lo),
-                bias_a: m.current_a.iter().sum::<f64>() / n as f64,
+                bias_a: settled.iter().sum::<f64>() / settled.len().max(1) as f64,
                 settle_samples: settle,
                 quasi_static: f < QUASI_STATIC_BELOW_HZ,
                 held_out: false,

@@ -664,6 +664,38 @@ mod nuisance {
     }
 }
 
+mod experiments {
+    use maglab_dataset::data::Measurement;
+    use maglab_model::experiments::describe;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn amplitude_and_bias_are_those_of_the_settled_sine_not_of_the_opening_transient() {
+        // A 0.15 A sine at 20 Hz about 0.5 A, measured on a coil whose amplifier starts at 2 A
+        // (where the sweep before it ended) and settles with a 2 ms time constant.
+        let (rate_hz, n) = (10_000.0, 5_000);
+        let current_a: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 / rate_hz;
+                0.5 + 0.15 * (2.0 * PI * 20.0 * t).sin() + 1.5 * (-t / 2e-3).exp()
+            })
+            .collect();
+        let m = Measurement {
+            path: "00_sine.csv".into(),
+            t_s: (0..n).map(|k| k as f64 / rate_hz).collect(),
+            displacement_m: vec![0.0; n],
+            current_a,
+            coil_current_a: None,
+            step_s: 1.0 / rate_hz,
+        };
+        let info = &describe(std::slice::from_ref(&m), rate_hz)[0];
+        // Settled after one period (500 samples, 0.05 s = 25 time constants).
+        assert_eq!(info.settle_samples, 500);
+        assert!((info.amplitude_a - 0.15).abs() < 1e-3, "{info:?}");
+        assert!((info.bias_a - 0.5).abs() < 1e-3, "{info:?}");
+    }
+}
+
 mod coverage {
     use maglab_model::coverage::*;
     use serde_json::json;

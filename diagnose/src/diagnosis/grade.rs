@@ -6,7 +6,7 @@
 //! | `none` | the verdict is `none` | the gap is within the noise or the model's own error |
 //! | `effect` | one significant effect, no other as good | that effect explains the gap |
 //! | `pair` | a pair named (step 8) | both effects are needed |
-//! | `either` | a significant single winner and another significant candidate within [`AMBIGUOUS_HELD_OUT`] of its held-out error, or a winner whose term another effect enters as well ([`SAME_TERM`]) | "X or Y": these experiments cannot separate them |
+//! | `either` | a significant single winner and another significant candidate within [`AMBIGUOUS_HELD_OUT`] of its held-out error, or as good on training and apart on the held-out experiments by less than the winner's own training misfit, or a winner whose term another effect enters as well ([`SAME_TERM`]) | "X or Y": these experiments cannot separate them |
 //! | `partly_explained` | no effect explains the gap, but one removes more than half of its energy in every held-out band, and more than half of what its own fit leaves with the effect switched off | "partly explained by X (share ± spread), the rest unexplained" |
 //! | `unexplained` | none of these | no library effect accounts for most of the gap |
 //!
@@ -36,7 +36,9 @@
 //! eddy candidate's form, and the fits separate the two.
 
 use super::report::CandidateResult;
-use super::rules::{resolution_floor, AMBIGUOUS_HELD_OUT, MAX_WORSE_SHARE, PARTIAL_SHARE};
+use super::rules::{
+    resolution_floor, AMBIGUOUS_HELD_OUT, EQUAL_ON_TRAINING, MAX_WORSE_SHARE, PARTIAL_SHARE,
+};
 use serde::Serialize;
 
 /// Winners whose term of the model another effect enters as well (module docs), with that
@@ -133,13 +135,19 @@ pub fn grade(
             None => graded(Grade::Unexplained),
         },
         _ if !additional_effects.is_empty() => graded(Grade::Pair),
-        winner => match rival(winner, ranking) {
-            Some(other) => Graded {
+        winner => match rival(winner, ranking, noise_m) {
+            Some((other, why)) => Graded {
                 either: vec![winner.to_string(), other.clone()],
-                either_reason: format!(
-                    "{other} fits the held-out experiments within {:.0} % as well",
-                    100.0 * (AMBIGUOUS_HELD_OUT - 1.0)
-                ),
+                either_reason: match why {
+                    Rivalry::HeldOut => format!(
+                        "{other} fits the held-out experiments within {:.0} % as well",
+                        100.0 * (AMBIGUOUS_HELD_OUT - 1.0)
+                    ),
+                    Rivalry::WithinTrainingMisfit => format!(
+                        "{other} fits the training experiments as well, and falls behind on the \
+                         held-out ones by less than {winner}'s own misfit on the training ones"
+                    ),
+                },
                 ..graded(Grade::Either)
             },
             None => match SAME_TERM
@@ -157,15 +165,42 @@ pub fn grade(
     }
 }
 
-/// The best other significant candidate within [`AMBIGUOUS_HELD_OUT`] of `winner`'s held-out
-/// error.
-fn rival(winner: &str, ranking: &[CandidateResult]) -> Option<String> {
+/// The best other significant candidate the held-out experiments do not separate from
+/// `winner`: within [`AMBIGUOUS_HELD_OUT`] of its held-out error, or one that fits the training
+/// experiments as well ([`EQUAL_ON_TRAINING`]) and whose held-out systematic energy exceeds the
+/// winner's by no more than the systematic energy the winner leaves on its own training
+/// experiments (noise `noise_m` removed from each). That training misfit is the model's error
+/// where it was fitted (masses not measured on the dynamic loops, an effect's form other than the
+/// library's); its extrapolation to the held-out experiments errs at least as much, so a smaller
+/// held-out difference between two fits that the training experiments cannot tell apart ranks
+/// the model's error, not the effects.
+fn rival(winner: &str, ranking: &[CandidateResult], noise_m: f64) -> Option<(String, Rivalry)> {
     let w = ranking.iter().find(|c| c.effect == winner)?;
+    let held_out = |c: &CandidateResult| systematic_energy(c.held_out_rms_after_m, noise_m);
+    let training_misfit = systematic_energy(w.training_rms_m, noise_m);
     ranking
         .iter()
         .filter(|c| c.effect != winner && c.significant)
-        .find(|c| c.held_out_rms_after_m <= AMBIGUOUS_HELD_OUT * w.held_out_rms_after_m)
-        .map(|c| c.effect.clone())
+        .find_map(|c| {
+            if c.held_out_rms_after_m <= AMBIGUOUS_HELD_OUT * w.held_out_rms_after_m {
+                Some((c.effect.clone(), Rivalry::HeldOut))
+            } else if c.training_rms_m <= EQUAL_ON_TRAINING * w.training_rms_m
+                && held_out(c) - held_out(w) <= training_misfit
+            {
+                Some((c.effect.clone(), Rivalry::WithinTrainingMisfit))
+            } else {
+                None
+            }
+        })
+}
+
+/// Why [`rival`] found the held-out experiments unable to separate two candidates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Rivalry {
+    /// Their held-out errors are within [`AMBIGUOUS_HELD_OUT`].
+    HeldOut,
+    /// Equal on training, apart on the held-out ones by less than the training misfit.
+    WithinTrainingMisfit,
 }
 
 /// The systematic part of an RMS error `rms_m` over noise `noise_m`, squared.

@@ -44,7 +44,10 @@
 //!    [`ConstantsRange`]: narrow for a file's constants, wide for those `maglab identify` fitted
 //!    from data, which may have absorbed an effect), and the
 //!    same plus each effect of the library, fitted by Levenberg-Marquardt from a small grid of
-//!    starts (the effects in parallel, rayon).
+//!    starts (the effects in parallel, rayon): the effect's library starts, each with the
+//!    refitted constants and the file's, and for a lag (amplifier, sensor, load) on an `f0`
+//!    identified from data also with that `f0` raised by the square root of its refit factor
+//!    (the identification reads a lag as a lower `f0`; `singles::common_starts`).
 //! 7. **Score and verdict** on the held-out experiments, against the *refitted* nominal model:
 //!    * `none` when the refitted nominal model's held-out systematic gap is below the resolution
 //!      of the gap estimate ([`rules::resolution_floor`] = max(0.35 σ, 0.05 % of the motion)) or
@@ -63,7 +66,10 @@
 //!      not resolve, the one that needs fewer of the refitted constants and the skew at an end
 //!      of their band (the same rule picks among the pairs of step 8; the tie the verdict's fit
 //!      was in is recorded, [`Diagnosis::held_out_tie`]);
-//!    * candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`;
+//!    * candidates within 10 % of the winner's held-out error are listed as `ambiguous_with`
+//!      (and the verdict graded "X or Y", [`grade`], as it is when one fits the training
+//!      experiments as well and falls behind on the held-out ones by less than the winner's own
+//!      systematic misfit on the training ones);
 //!      significant candidates that fit the training experiments as well as a single winner
 //!      (training RMS within [`rules::EQUAL_ON_TRAINING`]) as `equal_on_training`: between them only the
 //!      extrapolation to the held-out experiments decides;

@@ -95,15 +95,15 @@ pub fn fit_library(
     library: &[EffectName],
     progress: &(dyn Fn(u64) + Sync),
 ) -> (Vec<Ranked>, Option<HeldOutTie>) {
-    // Each effect starts from the refitted constants and from the file's (the refitted ones may
-    // have stretched to mimic the effect).
-    let commons = [
-        refit.fitted.values[..COMMON_PARAMETER_COUNT].to_vec(),
-        common_start.to_vec(),
-    ];
     let fitted: Vec<PlanFit> = library
         .par_iter()
         .map(|&effect| {
+            let commons = common_starts(
+                &refit.fitted.values[..COMMON_PARAMETER_COUNT],
+                common_start,
+                stage.fitter.settings.refit_range[2],
+                effect,
+            );
             let starts: Vec<Vec<f64>> = candidates::effect_starts(effect, stage.nominal)
                 .into_iter()
                 .flat_map(|s| {
@@ -128,6 +128,33 @@ pub fn fit_library(
     (ranked, tie)
 }
 
+/// The shared parameters (`R_eddy`, `ξ`, `f0`, skew) `effect`'s fit starts from: the `refitted`
+/// ones and the file's `common_start` (the refitted ones may have stretched to mimic the
+/// effect). When the file's `f0` was identified from data (its refit factor `f0_factor` widened,
+/// [`super::rules::IDENTIFIED_REFIT_RANGE`]) and `effect`
+/// adds a lag to the displacement, also the file's with `f0` raised by the square root of that
+/// range's factor: the identification reads such a lag as a lower `f0` (the phase of eq. (5)'s
+/// second-order section grows as `f0` falls), so the effect's optimum lies above the file's `f0`,
+/// and a start from below stops in the valley where the effect and a low `f0` share the lag.
+fn common_starts(
+    refitted: &[f64],
+    common_start: &[f64],
+    f0_factor: f64,
+    effect: EffectName,
+) -> Vec<Vec<f64>> {
+    let mut commons = vec![refitted.to_vec(), common_start.to_vec()];
+    let adds_lag = matches!(
+        effect,
+        EffectName::SensorDynamics | EffectName::MechanicalLoad | EffectName::AmplifierBandwidth
+    );
+    if adds_lag && f0_factor > candidates::REFIT_RANGE[2] {
+        let mut raised = common_start.to_vec();
+        raised[2] *= f0_factor.sqrt();
+        commons.push(raised);
+    }
+    commons
+}
+
 /// The knock-out refits of one effect alone (started from a pair's optimum) that fit the
 /// training experiments better than that effect's own single fit replace it: a better optimum
 /// of the same candidate, chosen by the training fit, never by the held-out score (a two-mode
@@ -146,4 +173,34 @@ pub fn take_better_optima(stage: &Stage<'_>, ranked: &mut [Ranked], refits: Vec<
         }
     }
     replaced
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lag_on_an_identified_f0_also_starts_from_f0_raised() {
+        let (refitted, file) = ([60.0, 0.7, 250.0, 0.1], [70.0, 0.6, 240.0, 0.1]);
+        let identified = candidates::IDENTIFICATION_RANGE[2];
+        let lags = [
+            EffectName::SensorDynamics,
+            EffectName::MechanicalLoad,
+            EffectName::AmplifierBandwidth,
+        ];
+        for effect in lags {
+            let starts = common_starts(&refitted, &file, identified, effect);
+            assert_eq!(starts.len(), 3, "{effect:?}");
+            assert_eq!(starts[..2], [refitted.to_vec(), file.to_vec()]);
+            let raised = [70.0, 0.6, 240.0 * identified.sqrt(), 0.1];
+            assert_eq!(starts[2], raised);
+            // The file's own constants: no reason to expect a lag absorbed into f0.
+            let given = candidates::REFIT_RANGE[2];
+            assert_eq!(common_starts(&refitted, &file, given, effect).len(), 2);
+        }
+        // Not a lag: ΔE, thermal drift and the others keep the two starts.
+        for effect in [EffectName::DeltaEEffect, EffectName::ThermalDrift] {
+            assert_eq!(common_starts(&refitted, &file, identified, effect).len(), 2);
+        }
+    }
 }
