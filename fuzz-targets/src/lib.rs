@@ -49,22 +49,41 @@ pub fn params_validator(data: &[u8]) {
     }
 }
 
-/// A scratch file for the readers that take a path (one per thread and process).
-fn scratch(name: &str, data: &[u8]) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("maglab-fuzz-{}", std::process::id()));
-    let _ = std::fs::create_dir_all(&dir);
-    let path =
-        dir.join(format!("{:?}-{name}", std::thread::current().id()).replace(['(', ')'], ""));
-    if let Ok(mut f) = std::fs::File::create(&path) {
-        let _ = f.write_all(data);
+/// A scratch file for the readers that take a path (one per thread and process), removed with
+/// its folder when dropped: a replay of the corpus writes thousands of inputs, and nothing of
+/// them is worth keeping once the reader returned.
+struct Scratch {
+    path: PathBuf,
+}
+
+impl Scratch {
+    fn new(name: &str, data: &[u8]) -> Self {
+        let dir = std::env::temp_dir().join(format!("maglab-fuzz-{}", std::process::id()));
+        let _ = std::fs::create_dir_all(&dir);
+        let path =
+            dir.join(format!("{:?}-{name}", std::thread::current().id()).replace(['(', ')'], ""));
+        if let Ok(mut f) = std::fs::File::create(&path) {
+            let _ = f.write_all(data);
+        }
+        Scratch { path }
     }
-    path
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+        // Fails while another thread's file is still there; the last one out removes it.
+        if let Some(dir) = self.path.parent() {
+            let _ = std::fs::remove_dir(dir);
+        }
+    }
 }
 
 /// Any bytes as one measurement file (`t_s,current_a,displacement_m`).
 pub fn measurement_csv(data: &[u8]) {
-    let path = scratch("measurement.csv", data);
-    if let Ok(m) = maglab_dataset::data::load_measurement(&path) {
+    let scratch = Scratch::new("measurement.csv", data);
+    let path = &scratch.path;
+    if let Ok(m) = maglab_dataset::data::load_measurement(path) {
         assert_eq!(m.t_s.len(), m.current_a.len());
         assert!(m.step_s.is_finite() && m.step_s > 0.0, "step {}", m.step_s);
     }
@@ -100,8 +119,9 @@ pub fn preisach_fit_input(data: &[u8]) {
         group: (!group.is_empty()).then_some(group),
         filter,
     };
-    let path = scratch("fit.csv", data.get(split + 1..).unwrap_or(&[]));
-    if let Ok(table) = read_columns(&path, &spec) {
+    let scratch = Scratch::new("fit.csv", data.get(split + 1..).unwrap_or(&[]));
+    let path = &scratch.path;
+    if let Ok(table) = read_columns(path, &spec) {
         assert!(table.selected_rows() <= table.rows());
         // The line chooser on whatever the file holds: the grid over the data range (as
         // `preisach-fit` builds it) has finite, strictly increasing lines from h_min to h_max.
