@@ -36,9 +36,7 @@
 //! eddy candidate's form, and the fits separate the two.
 
 use super::report::CandidateResult;
-use super::rules::{
-    resolution_floor, AMBIGUOUS_HELD_OUT, EQUAL_ON_TRAINING, MAX_WORSE_SHARE, PARTIAL_SHARE,
-};
+use super::rules::{resolution_floor, AMBIGUOUS_HELD_OUT, MAX_WORSE_SHARE, PARTIAL_SHARE};
 use serde::Serialize;
 
 /// Winners whose term of the model another effect enters as well (module docs), with that
@@ -167,7 +165,7 @@ pub fn grade(
 
 /// The best other significant candidate the held-out experiments do not separate from
 /// `winner`: within [`AMBIGUOUS_HELD_OUT`] of its held-out error, or one that fits the training
-/// experiments as well ([`EQUAL_ON_TRAINING`]) and whose held-out systematic energy exceeds the
+/// experiments as well ([`super::verdict::equal_on_training`]) and whose held-out systematic energy exceeds the
 /// winner's by no more than the systematic energy the winner leaves on its own training
 /// experiments (noise `noise_m` removed from each). That training misfit is the model's error
 /// where it was fitted (masses not measured on the dynamic loops, an effect's form other than the
@@ -178,13 +176,14 @@ fn rival(winner: &str, ranking: &[CandidateResult], noise_m: f64) -> Option<(Str
     let w = ranking.iter().find(|c| c.effect == winner)?;
     let held_out = |c: &CandidateResult| systematic_energy(c.held_out_rms_after_m, noise_m);
     let training_misfit = systematic_energy(w.training_rms_m, noise_m);
+    let equal_on_training = super::verdict::equal_on_training(w, ranking.iter());
     ranking
         .iter()
         .filter(|c| c.effect != winner && c.significant)
         .find_map(|c| {
             if c.held_out_rms_after_m <= AMBIGUOUS_HELD_OUT * w.held_out_rms_after_m {
                 Some((c.effect.clone(), Rivalry::HeldOut))
-            } else if c.training_rms_m <= EQUAL_ON_TRAINING * w.training_rms_m
+            } else if equal_on_training.contains(&c.effect)
                 && held_out(c) - held_out(w) <= training_misfit
             {
                 Some((c.effect.clone(), Rivalry::WithinTrainingMisfit))
