@@ -1,11 +1,11 @@
 //! `maglab-identify`: identification of the actuator model from measured data (paper Section 4).
 //!
 //! This crate owns everything between a folder of measurement files and an identified parameter
-//! file, for the parts that do not need the dynamic model (4)-(5):
+//! file:
 //!
-//! * [`data`]: the measurement format (`t_s,current_a,displacement_m`, one experiment per file,
-//!   a dataset is a folder) and its errors (file, line, column, value); [`columns`] reads two
-//!   arbitrary numeric columns of any CSV for the generic hysteresis fit.
+//! * the measurement format (`t_s,current_a,displacement_m`, one experiment per file, a dataset
+//!   is a folder) and its errors (file, line, column, value) are `maglab_dataset`'s; [`columns`]
+//!   reads two arbitrary numeric columns of any CSV for the generic hysteresis fit.
 //! * [`memory`]: an f64 Preisach memory (the staircase of dominant reversal points) written
 //!   independently of the no_std core, and [`cells`]: the exact fraction of every grid cell's area
 //!   inside `P₊` for a memory state. These fractions are the regressors: with a density uniform per
@@ -15,18 +15,23 @@
 //! * [`fit`]: non-negative, optionally regularized least squares of the cell masses (and of an
 //!   optional affine/reversible part) solved as a convex QP with `clarabel`.
 //! * [`model`]: a fitted generic Preisach model (JSON), its prediction and the NRMSE metric.
+//! * [`lines`] and [`reach`]: where the grid's lines go, and the grid from the field the data
+//!   reach (a rod the coil cannot saturate).
+//! * [`masses`]: the 325 masses of a quasi-static dataset, through [`magnetization`]
+//!   (displacement → magnetization by the static model (6)).
 //! * [`drift`]: whether a quasi-static record returns to the same state with the same reading
 //!   (a time-dependent effect or friction otherwise: a warning of `maglab identify`).
-//! * [`magnetization`]: displacement → magnetization through the static model (6).
-//! * [`excite`]: the quasi-static excitation current (first-order reversal curves).
 //! * [`experiments`]: the dataset convention — which files are quasi-static and which are dynamic
-//!   (sub-folders `quasi-static/`, `dynamic/`, or the spectrum of each file's current), and
-//!   [`spectrum`]: excitation frequency (FFT) and fundamental phasors (harmonic least squares).
+//!   (sub-folders `quasi-static/`, `dynamic/`, or the spectrum of each file's current, with
+//!   `maglab_signal::spectrum`).
 //! * [`dynamics`]: `R_eddy`, `ξ`, `f0` from the dynamic experiments with the core's model (4)-(5):
 //!   the paper's phase-lag scheme and a direct waveform fit (Levenberg-Marquardt).
-//! * [`actuator`]: `maglab identify`: dataset → weights (and, with dynamic experiments, R_eddy,
+//! * [`coverage`]: whether the quasi-static records reverse where the dynamic ones do;
+//!   [`quality`]: the checks of a result before it is written (its warnings).
+//! * [`pipeline`]: `maglab identify`: dataset → weights (and, with dynamic experiments, R_eddy,
 //!   ξ, f0) → the full `ActuatorParams` JSON with provenance. Without dynamic experiments R_eddy,
-//!   ξ and f0 are copied from a base parameter file and the provenance says so.
+//!   ξ and f0 are copied from a base parameter file and the provenance says so. The quasi-static
+//!   excitation current (first-order reversal curves) is `maglab_dataset::excitation`'s.
 //!
 //! Grid conventions are the core's (`magctl::preisach`): 25 intervals of `[h_min, h_max]` (equal, or
 //! between chosen lines: [`lines`]),

@@ -12,7 +12,7 @@
 //! A side the data reach — the grid's end lies inside the reach — keeps the base grid's end.
 //! When both do, the data decide whether the coil saturated the rod there: the masses are fitted
 //! on the base grid and on the banded one ([`banded_grid`]) and the banded fit is kept when the
-//! Bayesian information criterion prefers it ([`prefers_banded`]).
+//! Bayesian information criterion prefers it (`prefers_banded`).
 
 use crate::design::Grid;
 use crate::fit::{Bands, FitResult};

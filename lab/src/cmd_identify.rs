@@ -71,8 +71,8 @@ pub struct Args {
     /// Use every n-th sample in the regression (the memory still sees every sample).
     #[arg(long, default_value_t = defaults().masses.fit.row_stride)]
     row_stride: usize,
-    /// The reversible magnetization: `none` (the paper's M = Γ[H]), `piecewise` (M = Γ[H] +
-    /// R(H), a monotone piecewise-linear anhysteretic part with a susceptibility per grid
+    /// The reversible magnetization: `none` (the paper's `M = Γ[H]`), `piecewise` (`M = Γ[H] +
+    /// R(H)`, a monotone piecewise-linear anhysteretic part with a susceptibility per grid
     /// interval, fitted with the masses, which then sum to at most M_s, and written as
     /// `preisach.reversible_susceptibility`) or `auto`: `piecewise` only when the paper's masses
     /// sum past 1.02 x M_s (the sweep shows more magnetization than Γ gives) and the reversible

@@ -219,7 +219,7 @@ impl Candidate {
 /// * a second load mass hanging on the first (a fixture or a payload on a flexible mount has a
 ///   mode of its own above the coupling's).
 ///
-/// Tried in the second stage of the diagnosis ([`crate::diagnosis`]): a second effect is not
+/// Tried in the second stage of the diagnosis (`maglab_diagnose::diagnosis`): a second effect is not
 /// missed because the first one's library form was too narrow, and a second effect is not
 /// named for what a richer form of the first (or a better optimum of its library form)
 /// explains.

@@ -7,7 +7,7 @@
 //! afterwards, [`crate::model::observe`]) cost only the sensor's reading of it (the same
 //! numbers, bit for bit).
 //!
-//! **Jacobian.** Forward differences of step [`JACOBIAN_STEP`] in the unbounded coordinates. The
+//! **Jacobian.** Forward differences of step `JACOBIAN_STEP` (10⁻³) in the unbounded coordinates. The
 //! columns of the electromagnetic parameters (`R_eddy`, the eddy paths, the amplifier, the
 //! reversible term) each need a new electromagnetic run; they take it from **one** run with the
 //! setup's substeps ([`ModelSetup::single_run`]) instead of the Richardson pair of `S` and `2S`

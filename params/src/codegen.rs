@@ -3,7 +3,7 @@
 //! The generated file defines `BAKED_PARAMETERS`, of the core's
 //! `magctl::params::ActuatorParameters` type (f32 fields, the same names and units as the JSON),
 //! built from `ActuatorParameters::ZERO` by one assignment per field of
-//! [`core_fields!`](crate::core_fields); `BAKED_PARAMETERS_SOURCE`, the path the values were read
+//! [`core_fields!`](macro@crate::core_fields); `BAKED_PARAMETERS_SOURCE`, the path the values were read
 //! from; and `BAKED_PARAMETERS_PROVENANCE`, the file's `provenance.source`.
 
 use crate::{ActuatorParams, FeedbackStructure};

@@ -1,7 +1,7 @@
 //! The fields of the parameter file that the core (`magctl::params::ActuatorParameters`) carries,
 //! listed once: each line is the field's path in the file, then its path in the core's types.
 //!
-//! [`core_fields!`](crate::core_fields) hands the list to a macro of the caller's, which derives
+//! [`core_fields!`](macro@crate::core_fields) hands the list to a macro of the caller's, which derives
 //! one mapping from it. There are three: the Rust source `build.rs` bakes ([`crate::codegen`]),
 //! the run-time narrowing of a file to the core's f32 types
 //! (`magctl::params::ActuatorParameters::from_file`) and its widening back to a file

@@ -4,7 +4,7 @@
 //! This crate owns the schema ([`ActuatorParams`]), its validation (every error names the field
 //! and the reason), the analytic default Preisach measure ([`default_measure`]) and the Rust
 //! source that `build.rs` writes into `OUT_DIR` ([`codegen`]), and the list of the fields the
-//! core carries that every mapping to the core's types derives from ([`core_fields`]). It is `std` only: the no_std core
+//! core carries that every mapping to the core's types derives from ([`core_fields`](mod@core_fields)). It is `std` only: the no_std core
 //! never parses JSON; it sees typed constants.
 //!
 //! The schema is documented field by field in `docs/params.md`.

@@ -6,7 +6,7 @@
 //! beyond the paper's: its own f64 Preisach operator ([`preisach`]), the eddy-current equation in
 //! differential form with its own RK4 integrator ([`actuator`]), each effect in a physical form
 //! the diagnosis' candidates do not have ([`effects`]), and a recorder with channel skew, sensor
-//! offset, noise, quantization and documented start states ([`bench`]).
+//! offset, noise, quantization and documented start states ([`bench`](mod@bench)).
 
 pub mod actuator;
 pub mod bench;

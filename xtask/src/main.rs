@@ -1,10 +1,10 @@
 //! `cargo xtask`: project automation in plain Rust (the cargo-xtask pattern; `.cargo/config.toml`
 //! aliases `cargo xtask` to `cargo run --package xtask --`).
 //!
-//! Commands live one per module and are listed in [`COMMANDS`]:
+//! Commands live one per module and are listed in [`Task`]:
 //! * `setup` ([`setup`]): installs what is missing (the `thumbv7em-none-eabihf` target, rustfmt
 //!   and clippy, `qemu-system-arm`);
-//! * `test` ([`test`]): setup, then fmt, clippy, the workspace tests and the no_std build of the
+//! * `test` ([`test`](mod@test)): setup, then fmt, clippy, the workspace tests and the no_std build of the
 //!   core, the Markdown link check ([`doclinks`]), with a summary whose last line is `N passed, M failed`;
 //! * `demo` ([`demo`]): setup, then the host demo (`maglab loops`), the QEMU firmware run and the
 //!   tracking figures (`maglab track`) into `out/`;

@@ -3,9 +3,9 @@
 //!
 //! # Steps
 //!
-//! Each step has its module: [`recording`] (steps 1–5, with [`split`]), [`singles`] (6–7),
-//! [`pairs`] (8), [`verdict`]; [`scoring`] scores a fit, [`rules`] holds every tuned constant,
-//! [`report`] what `diagnosis.json` holds.
+//! Each step has its module (private ones named without a link): `recording` (steps 1–5, with
+//! `split`), `singles` (6–7), `pairs` (8), `verdict`; `scoring` scores a fit, [`rules`] holds
+//! every tuned constant, `report` what `diagnosis.json` holds.
 //!
 //! 1. **Experiments.** Each record's fundamental (the dominant frequency of its current),
 //!    amplitude and bias. Records whose fundamental is below [`maglab_model::experiments::QUASI_STATIC_BELOW_HZ`] (reversal
