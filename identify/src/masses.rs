@@ -100,6 +100,37 @@ pub struct FileReport {
     pub m_measured_a_per_m: Vec<f64>,
     /// M predicted by the identified model, A/m.
     pub m_predicted_a_per_m: Vec<f64>,
+    /// Where the record's start state came from.
+    pub start_from: StartFrom,
+}
+
+/// Where a quasi-static record's start state came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StartFrom {
+    /// `--initial`.
+    Given,
+    /// `dataset.json`.
+    Documented,
+    /// Not documented: estimated ([`auto_initial`]).
+    Estimated,
+    /// Documented `previous`, which a quasi-static record is not continued from (the records
+    /// before it, dynamic ones included, are not simulated here): estimated as [`Estimated`]
+    /// is, and said so, since the estimate misses the memory those records left.
+    ///
+    /// [`Estimated`]: StartFrom::Estimated
+    EstimatedForPrevious,
+}
+
+impl StartFrom {
+    /// The provenance's `initial_state_from`.
+    pub fn name(self) -> &'static str {
+        match self {
+            StartFrom::Given => "given",
+            StartFrom::Documented => "documented",
+            StartFrom::Estimated => "estimated",
+            StartFrom::EstimatedForPrevious => "estimated (documented previous)",
+        }
+    }
 }
 
 /// The result of `identify`.
@@ -546,6 +577,8 @@ struct Record {
     floor_m: f64,
     /// How the start state and the sign convention were chosen, for the provenance.
     choice: Value,
+    /// Where the start state came from.
+    start_from: StartFrom,
 }
 
 /// What every record's conversion shares.
@@ -585,18 +618,18 @@ impl RecordSetting<'_> {
             || m.path.display().to_string(),
             |n| n.to_string_lossy().into(),
         );
-        let (initial, how) = match options.initial {
-            Some(i) => (i, "given"),
-            None => match options
-                .documented
-                .as_ref()
-                .and_then(|d| d.start_of(&name))
-                .and_then(documented_initial)
-            {
-                Some(i) => (i, "documented"),
+        let documented = options.documented.as_ref().and_then(|d| d.start_of(&name));
+        let (initial, start_from) = match options.initial {
+            Some(i) => (i, StartFrom::Given),
+            None => match documented.and_then(documented_initial) {
+                Some(i) => (i, StartFrom::Documented),
                 None => (
                     auto_initial(&h_static, &displacement, noise_m, self.grid),
-                    "estimated",
+                    if documented == Some(StartState::Previous) {
+                        StartFrom::EstimatedForPrevious
+                    } else {
+                        StartFrom::Estimated
+                    },
                 ),
             },
         };
@@ -636,8 +669,9 @@ impl RecordSetting<'_> {
             }
         }
         Record {
-            choice: json!({"file": name, "initial_state": initial.name(), "initial_state_from": how, "branch": branch.name()}),
+            choice: json!({"file": name, "initial_state": initial.name(), "initial_state_from": start_from.name(), "branch": branch.name()}),
             label: name,
+            start_from,
             field,
             conversion,
             initial,
@@ -767,6 +801,7 @@ fn file_reports(
                 h_a_per_m: r.field.clone(),
                 m_measured_a_per_m: r.conversion.m_a_per_m.clone(),
                 m_predicted_a_per_m: m_pred,
+                start_from: r.start_from,
             }
         })
         .collect()

@@ -20,7 +20,7 @@
 //! file may still be the best available); it says the model does not describe the data, so the
 //! file should not be trusted before `maglab diagnose` has said why.
 
-use crate::masses::FileReport;
+use crate::masses::{FileReport, StartFrom};
 
 /// A quasi-static record's displacement NRMSE above this is warned about (the model's own
 /// records stay below 1 %).
@@ -64,6 +64,25 @@ pub struct DynamicResidual {
     pub nrmse: f64,
 }
 
+/// What a missed quasi-static record's warning adds about its start state: an estimated start
+/// may be the miss (the memory outside a loop sets an offset of `M`, so a wrong start misses the
+/// whole record).
+fn start_caveat(start_from: StartFrom) -> &'static str {
+    match start_from {
+        StartFrom::Given | StartFrom::Documented => "",
+        StartFrom::Estimated => {
+            ", or its start state, which dataset.json does not document and was estimated \
+             (document it)"
+        }
+        StartFrom::EstimatedForPrevious => {
+            ", or its start state: dataset.json documents it `previous`, but a quasi-static \
+             record is not continued from the records before it, so its start was estimated and \
+             misses the memory they left (record it from a documented reset: demagnetized or a \
+             saturation)"
+        }
+    }
+}
+
 /// The warnings for an identification: `files` are the quasi-static records' reports,
 /// `mass_sum_a_per_m` the sum of the identified masses, `saturation_a_per_m` `M_s`, `dynamic` the
 /// final fit's residual per dynamic experiment and `fitted_up_to_hz` the highest fundamental the
@@ -88,11 +107,12 @@ pub fn warnings(
                  NRMSE (limit {:.0} %; {:.0} % of the samples lie above the file's full stroke): \
                  something other than rate-independent hysteresis moves the rod during the sweep \
                  (drift, creep, friction, a sensor nonlinearity), or the base file's stroke \
-                 constants do not match this rod",
+                 constants do not match this rod{}",
                 f.file,
                 100.0 * nrmse,
                 100.0 * QUASI_STATIC_NRMSE_LIMIT,
-                100.0 * above
+                100.0 * above,
+                start_caveat(f.start_from)
             ));
         }
     }

@@ -273,7 +273,7 @@ mod lines {
     }
 }
 mod quality {
-    use maglab_identify::masses::FileReport;
+    use maglab_identify::masses::{FileReport, StartFrom};
     use maglab_identify::quality::*;
 
     fn file(nrmse: f64, above: usize) -> FileReport {
@@ -291,6 +291,7 @@ mod quality {
             h_a_per_m: Vec::new(),
             m_measured_a_per_m: Vec::new(),
             m_predicted_a_per_m: Vec::new(),
+            start_from: StartFrom::Documented,
         }
     }
 
@@ -316,6 +317,43 @@ mod quality {
             Some(200.0),
         );
         assert!(w.is_empty(), "{w:?}");
+    }
+
+    #[test]
+    fn a_missed_record_whose_start_was_estimated_says_so() {
+        let warning = |start_from| {
+            let missed = FileReport {
+                start_from,
+                ..file(0.24, 0)
+            };
+            let w = warnings(
+                &[missed],
+                Masses::Saturating {
+                    sum_a_per_m: 7.87e5,
+                },
+                7.87e5,
+                &[],
+                None,
+            );
+            assert_eq!(w.len(), 1, "{w:?}");
+            w[0].clone()
+        };
+        assert!(!warning(StartFrom::Documented).contains("start state"));
+        assert!(warning(StartFrom::Estimated).contains("was estimated (document it)"));
+        let previous = warning(StartFrom::EstimatedForPrevious);
+        assert!(
+            previous.contains("documents it `previous`") && previous.contains("documented reset"),
+            "{previous}"
+        );
+        // A record within the limit gets no warning, however its start was chosen.
+        let fits = FileReport {
+            start_from: StartFrom::EstimatedForPrevious,
+            ..file(0.003, 0)
+        };
+        let sum = Masses::Saturating {
+            sum_a_per_m: 7.87e5,
+        };
+        assert!(warnings(&[fits], sum, 7.87e5, &[], None).is_empty());
     }
 
     #[test]
