@@ -115,7 +115,7 @@ pub enum StartFrom {
     Estimated,
     /// Documented `previous`, which a quasi-static record is not continued from (the records
     /// before it, dynamic ones included, are not simulated here): estimated as [`Estimated`]
-    /// is, and said so, since the estimate misses the memory those records left.
+    /// is, and said so, since the estimate does not see the memory those records left.
     ///
     /// [`Estimated`]: StartFrom::Estimated
     EstimatedForPrevious,

@@ -76,8 +76,8 @@ fn start_caveat(start_from: StartFrom) -> &'static str {
         }
         StartFrom::EstimatedForPrevious => {
             ", or its start state: dataset.json documents it `previous`, but a quasi-static \
-             record is not continued from the records before it, so its start was estimated and \
-             misses the memory they left (record it from a documented reset: demagnetized or a \
+             record is not continued from the records before it, so its start was estimated \
+             without the memory they left (record it from a documented reset: demagnetized or a \
              saturation)"
         }
     }
