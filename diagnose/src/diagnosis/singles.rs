@@ -128,22 +128,21 @@ pub fn fit_library(
     (ranked, tie)
 }
 
-/// The lags that the identification reads as a lower `f0` (the phase of eq. (5)'s second-order
-/// section grows as `f0` falls): [`super::verdict::LAG_EFFECTS`] but the eddy path, whose lag an
-/// identification absorbs into `R_eddy`, the constant of eq. (4) it shares a term with.
-const LAGS_READ_AS_LOWER_F0: [EffectName; 3] = [
-    EffectName::AmplifierBandwidth,
-    EffectName::SensorDynamics,
-    EffectName::MechanicalLoad,
-];
+/// Whether the identification reads `effect`'s lag as a lower `f0` (the phase of eq. (5)'s
+/// second-order section grows as `f0` falls): the [`super::verdict::LAG_EFFECTS`] but the eddy
+/// path, whose lag an identification absorbs into `R_eddy`, the constant of eq. (4) it shares a
+/// term with.
+fn read_as_lower_f0(effect: EffectName) -> bool {
+    effect != EffectName::EddyFrequencyDependence && super::verdict::LAG_EFFECTS.contains(&effect)
+}
 
 /// The shared parameters (`R_eddy`, `ξ`, `f0`, skew) `effect`'s fit starts from: the `refitted`
 /// ones and the file's `common_start` (the refitted ones may have stretched to mimic the
 /// effect). When the file's `f0` was identified from data (its refit factor `f0_factor` widened,
-/// [`super::rules::IDENTIFIED_REFIT_RANGE`]) and `effect` is one of
-/// [`LAGS_READ_AS_LOWER_F0`], also the file's with `f0` raised by the square root of that
-/// factor: the effect's optimum lies above the identified `f0`, and a start from below stops in
-/// the valley where the effect and a low `f0` share the lag.
+/// [`super::rules::IDENTIFIED_REFIT_RANGE`]) and `effect`'s lag is [`read_as_lower_f0`], also
+/// the file's with `f0` raised by the square root of that factor: the effect's optimum lies above
+/// the identified `f0`, and a start from below stops in the valley where the effect and a low
+/// `f0` share the lag.
 fn common_starts(
     refitted: &[f64],
     common_start: &[f64],
@@ -151,7 +150,7 @@ fn common_starts(
     effect: EffectName,
 ) -> Vec<Vec<f64>> {
     let mut commons = vec![refitted.to_vec(), common_start.to_vec()];
-    if LAGS_READ_AS_LOWER_F0.contains(&effect) && f0_factor > candidates::REFIT_RANGE[2] {
+    if read_as_lower_f0(effect) && f0_factor > candidates::REFIT_RANGE[2] {
         let mut raised = common_start.to_vec();
         raised[2] *= f0_factor.sqrt();
         commons.push(raised);
