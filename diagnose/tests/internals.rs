@@ -450,6 +450,7 @@ mod advice {
 
     const RIG: Rig = Rig {
         resonance_hz: 392.0,
+        resonance_factor: 1.0,
         current_limit_a: 2.0,
         sample_rate_hz: 10_000.0,
         coil_current_measured: false,
@@ -603,6 +604,50 @@ mod advice {
         assert!(advise(&[(E::ReversibleMagnetization, None)], &with_both, RIG)[0].in_dataset);
     }
 
+    /// An f0 identified from data that hold a lag is read low (235 Hz for a rod at 392 Hz
+    /// behind a 200 Hz sensor); the sweep through the resonance must pass the peak wherever the
+    /// refit's range (×/÷ 2) puts it, not stop at 2.5 × 235 Hz, and a dataset that stops there
+    /// does not hold it.
+    #[test]
+    fn the_sweep_through_the_resonance_covers_the_range_of_an_identified_f0() {
+        let rig = Rig {
+            resonance_hz: 235.0,
+            resonance_factor: 2.0,
+            ..RIG
+        };
+        let pairs = [(E::MechanicalLoad, Some(E::SensorDynamics))];
+        let infos = [info(100.0, 0.3, 0.8), info(200.0, 0.3, 0.8)];
+        let how = &advise(&pairs, &infos, rig)[0].how;
+        // 0.5 to 2.5 f0, then steps of a quarter towards 2.5 × 470 Hz, cut at 1 kHz (10 samples
+        // a period at 10 kHz), which is within a tenth of 918 Hz.
+        assert!(
+            how.contains("--freq-hz 118,176,235,294,353,470,588,734,918 "),
+            "{how}"
+        );
+        // Sines at two biases up to 588 Hz (2.5 × the identified f0) do not hold it; up to
+        // 1 kHz they do.
+        let up_to = |top: f64| {
+            [0.8, 1.15]
+                .iter()
+                .flat_map(|&b| [info(118.0, 0.3, b), info(top, 0.3, b)])
+                .collect::<Vec<_>>()
+        };
+        assert!(!advise(&pairs, &up_to(588.0), rig)[0].in_dataset);
+        assert!(advise(&pairs, &up_to(1000.0), rig)[0].in_dataset);
+        // With a given f0 (factor 1) 2.5 f0 is the top; the refit's ×/÷ 1.06 for a given f0
+        // adds nothing a tenth apart.
+        assert!(advise(&pairs, &up_to(980.0), RIG)[0].in_dataset);
+        let given = Rig {
+            resonance_factor: 1.06,
+            ..RIG
+        };
+        let how = &advise(&pairs, &infos, given)[0].how;
+        assert!(
+            how.contains("--freq-hz 196,294,392,490,588,784,980 "),
+            "{how}"
+        );
+    }
+
     #[test]
     fn a_second_bias_stays_within_the_current_limit() {
         let d = Design::of(&[info(100.0, 0.6, 1.2)], RIG);
@@ -678,6 +723,7 @@ mod coverage {
         );
         let rig = Rig {
             resonance_hz: 392.0,
+            resonance_factor: 1.0,
             current_limit_a: 2.0,
             sample_rate_hz: 10_000.0,
             coil_current_measured: false,

@@ -12,7 +12,7 @@
 //! | a thermal soak (a sine, a hold at high current, the same sine again) | the thermal drift is the only candidate with a memory of the dissipated `I²` over seconds: the two sines differ by it alone |
 //! | quasi-static loops at the dynamic records' amplitudes | eddy currents (4), the rod's, the load's and the sensor's dynamics vanish at 1 Hz; a reversible part does not (it is a static term of `M`) |
 //! | the same sines at a second bias | the eddy lag goes with `1 + dM/dH` along the loop (4) and the ΔE effect with `M`: both change with the bias; a sensor's lag, a load's mode and the library's amplifier do not |
-//! | sines through and above the resonance (0.5 to 2.5 f0, as far as the sampling resolves), at two biases | a load adds a mode of its own (a second peak or anti-resonance), the ΔE effect moves the one resonance with the bias, a sensor adds phase without a peak, distributed eddy paths bend the response smoothly above their corners |
+//! | sines through and above the resonance (0.5 f0 to 2.5 times the highest f0 the refit's range allows — an f0 identified from data with a lag in them reads low —, as far as the sampling resolves), at two biases | a load adds a mode of its own (a second peak or anti-resonance), the ΔE effect moves the one resonance with the bias, a sensor adds phase without a peak, distributed eddy paths bend the response smoothly above their corners |
 //!
 //! For a pair `(X, Y)` the first rule that applies gives the recording: the amplifier in it → the
 //! coil current; thermal drift → the soak; a reversible part against eddy currents, the sensor or
@@ -84,7 +84,8 @@ impl Recording {
             }
             Recording::SecondBias => "the same sines at a second bias current",
             Recording::ThroughResonance => {
-                "sines through and above the rod's resonance (0.5 to 2.5 f0), at two biases"
+                "sines through and above the rod's resonance (from 0.5 f0 to 2.5 times the \
+                 highest f0 the refit allows), at two biases"
             }
             Recording::MeasuredLoops => {
                 "quasi-static loops (1 Hz) between the currents of the dynamic loops the \
@@ -137,6 +138,11 @@ impl Advice {
 pub struct Rig {
     /// The rod's resonance, Hz (the refitted or the parameter file's f0).
     pub resonance_hz: f64,
+    /// How far the true resonance may lie from `resonance_hz`, a factor (the refit's range of
+    /// `f0`, [`super::constants_range`]): an `f0` identified from data that hold a lag is read
+    /// low (a sensor's or a load's phase taken for the resonance's), so the sweep through the
+    /// resonance must reach past the whole range, not past the identified value.
+    pub resonance_factor: f64,
     /// The coil current limit, A.
     pub current_limit_a: f64,
     /// The dataset's sampling rate, Hz (the advised records' too).
@@ -443,13 +449,47 @@ impl Design {
             }),
             Recording::SecondBias => two_biases,
             Recording::ThroughResonance => {
-                two_biases
-                    && self
-                        .frequencies_hz
-                        .last()
-                        .is_some_and(|&f| f >= 2.0 * self.rig.resonance_hz)
+                // Up to the advised sweep's top, or within a step of it (a quarter).
+                let top = self.through_resonance_hz().last().copied().unwrap_or(0.0);
+                two_biases && self.frequencies_hz.last().is_some_and(|&f| f >= top / 1.2)
             }
         }
+    }
+
+    /// The frequencies of the sweep through the resonance, Hz: 0.5 to 2.5 times the rig's f0
+    /// (below the peak, the peak, above it; the range's lower part lies within it), then on up
+    /// to 2.5 times the highest resonance the rig's range allows (`f0 · factor`) in steps of a
+    /// quarter, so that the peak is passed wherever in the range it lies; as far as the
+    /// sampling resolves (`maglab_dataset::records`), the last one at that limit when the
+    /// range reaches past it (none closer than a tenth to the one below).
+    fn through_resonance_hz(&self) -> Vec<f64> {
+        let highest = self.rig.sample_rate_hz / MIN_SAMPLES_PER_PERIOD;
+        let f0 = self.rig.resonance_hz;
+        let high_f0 = f0 * self.rig.resonance_factor.max(1.0);
+        let mut freqs: Vec<f64> = [0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5]
+            .iter()
+            .map(|k| k * f0)
+            .collect();
+        // A frequency within a tenth of the one below it adds no point of the response.
+        let apart = |f: f64, below: f64| f >= 1.1 * below;
+        while let Some(&last) = freqs.last() {
+            let next = (1.25 * last).min(2.5 * high_f0);
+            if !apart(next, last) {
+                break;
+            }
+            freqs.push(next);
+        }
+        let cut = freqs.iter().any(|&f| f > highest);
+        let mut freqs: Vec<f64> = freqs
+            .into_iter()
+            .filter(|&f| f <= highest)
+            .map(round3)
+            .collect();
+        if cut && freqs.last().is_some_and(|&f| apart(highest, f)) {
+            freqs.push(round3(highest));
+        }
+        freqs.dedup();
+        freqs
     }
 
     fn command(&self, recording: Recording) -> String {
@@ -460,7 +500,6 @@ impl Design {
                 .join(",")
         };
         let (a, b, b2) = (self.amplitude_a(), self.bias_a(), self.second_bias_a());
-        let f0 = self.rig.resonance_hz;
         let excite = "maglab excite --design";
         match recording {
             Recording::CoilCurrent => "connect the amplifier's current-monitor output to a \
@@ -498,14 +537,7 @@ impl Design {
                 self.rig.sample_rate_hz.round()
             ),
             Recording::ThroughResonance => {
-                // Up to 2.5 f0, as far as the sampling resolves (maglab_dataset::records).
-                let highest = self.rig.sample_rate_hz / MIN_SAMPLES_PER_PERIOD;
-                let mut freqs: Vec<f64> = [0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5]
-                    .iter()
-                    .map(|k| round3(k * f0))
-                    .filter(|&f| f <= highest)
-                    .collect();
-                freqs.dedup();
+                let freqs = self.through_resonance_hz();
                 format!(
                     "{excite} sines --freq-hz {} --amplitude-a {} --bias-a {},{} \
                      --sample-rate-hz {} -o through_resonance",

@@ -164,7 +164,7 @@ pub use verdict::{also_significant, effects_identified_into, equal_on_training, 
 use maglab_dataset::data::Measurement;
 use maglab_dataset::dataset_info::DatasetInfo;
 use maglab_model::effects::EffectName;
-use maglab_model::experiments::experiment_data;
+use maglab_model::experiments::{experiment_data, ExperimentInfo};
 use maglab_model::fit::{ExperimentData, FitSettings};
 use maglab_model::plan_fit::PlanFitter;
 use pairs::SecondStage;
@@ -188,6 +188,11 @@ pub struct DiagnoseOptions {
     /// reading would be half a sample of delay that no amplifier or DAC makes), with the
     /// SAME_TERM pairs separated and no advice to record it.
     pub measured_current_input: bool,
+    /// With the measured current as the input, the experiments as commanded: the advised
+    /// recordings are commands, so their amplitudes and biases are the command's, not the coil
+    /// current's, which an amplifier's lag shrinks at high frequencies (`None`: the input is the
+    /// command, the advice reads the experiments the diagnosis fits).
+    pub commanded_experiments: Option<Vec<ExperimentInfo>>,
 }
 
 impl Default for DiagnoseOptions {
@@ -197,6 +202,7 @@ impl Default for DiagnoseOptions {
             fit: FitSettings::default(),
             library: EffectName::LIBRARY.to_vec(),
             measured_current_input: false,
+            commanded_experiments: None,
         }
     }
 }
@@ -220,10 +226,8 @@ pub fn diagnose(
         return diagnose_displacement(params, measurements, documented, options, progress);
     };
     let step_s = measurements.first().map_or(1.0, |m| m.step_s);
-    let quasi_static: Vec<bool> = maglab_model::experiments::describe(measurements, 1.0 / step_s)
-        .iter()
-        .map(|i| i.quasi_static)
-        .collect();
+    let commanded = maglab_model::experiments::describe(measurements, 1.0 / step_s);
+    let quasi_static: Vec<bool> = commanded.iter().map(|i| i.quasi_static).collect();
     let on_current = coil_current::with_measured_current(measurements, &quasi_static, &judgement)
         .ok_or("the coil current is recorded in some experiments only")?;
     let without_amplifier = DiagnoseOptions {
@@ -234,6 +238,7 @@ pub fn diagnose(
             .filter(|e| *e != EffectName::AmplifierBandwidth)
             .collect(),
         measured_current_input: true,
+        commanded_experiments: Some(commanded),
         ..options.clone()
     };
     let mut run = diagnose_displacement(
@@ -537,6 +542,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
     }
     let rig = advice::Rig {
         resonance_hz: params.actuator.resonance_hz,
+        resonance_factor: constants_range.factors[2],
         current_limit_a: params.control.current_limit_a,
         sample_rate_hz: rec.rate_hz,
         coil_current_measured,
@@ -569,7 +575,10 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
                 &also_listed,
                 graded.grade,
             ),
-            &rec.infos,
+            options
+                .commanded_experiments
+                .as_deref()
+                .unwrap_or(&rec.infos),
             rig,
         ));
         advice.truncate(advice::MAX_ADVICE);
