@@ -64,18 +64,11 @@ fn maglab(args: &[&str]) -> Result<String, String> {
 struct Outcome {
     label: String,
     expected: Vec<String>,
-    /// Right under the strict scoring (the named set is the truth).
-    strict: bool,
-    /// Right under the diagnosis suite's graded scoring (`suite::Kind::graded_right`): what
-    /// the issue's goal counts.
-    graded: bool,
-    /// The verdict as graded: `X`, `X+Y`, `partly X`, `X or Y`, `unexplained`, `none`.
-    graded_label: String,
-    identified: String,
-    /// R_eddy, ξ, f0 as identified.
-    constants: [f64; 3],
-    /// The report's advice (`diagnosis.json` `advice`): `recording (candidate vs candidate)`.
-    advice: Vec<String>,
+    /// The scored pass: the first, or with `IDENTIFIED_FOLLOW_ADVICE=on` the one after the
+    /// advice was followed.
+    pass: Pass,
+    /// With the advice followed, the first pass's graded verdict.
+    first_label: Option<String>,
     seconds: f64,
 }
 
@@ -149,11 +142,17 @@ fn write_case(
 
 /// What one identify → diagnose pass over a folder gave.
 struct Pass {
+    /// Right under the strict scoring (the named set is the truth).
     strict: bool,
+    /// Right under the diagnosis suite's graded scoring (`suite::Kind::graded_right`): what
+    /// the issue's goal counts.
     graded: bool,
+    /// The verdict as graded: `X`, `X+Y`, `partly X`, `X or Y`, `unexplained`, `none`.
     graded_label: String,
     identified: String,
+    /// R_eddy, ξ, f0 as identified.
     constants: [f64; 3],
+    /// The report's advice (`diagnosis.json` `advice`): `recording (candidate vs candidate)`.
     advice: Vec<String>,
     /// `diagnosis.json` `advice` as written (followed by [`follow_advice`]).
     advice_json: serde_json::Value,
@@ -367,10 +366,11 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
     let mut pass = identify_and_diagnose(&case, &dir, &identify_from, &data);
     // `IDENTIFIED_FOLLOW_ADVICE=on`: a user who is advised a recording makes it, adds it to the
     // folder, identifies and diagnoses again; the second pass is scored.
-    let follow = matches!(
-        std::env::var("IDENTIFIED_FOLLOW_ADVICE").as_deref(),
-        Ok("on")
-    );
+    let follow = match std::env::var("IDENTIFIED_FOLLOW_ADVICE").as_deref() {
+        Err(_) | Ok("") | Ok("off") => false,
+        Ok("on") => true,
+        Ok(other) => panic!("IDENTIFIED_FOLLOW_ADVICE `{other}`: expected `on` or `off`"),
+    };
     let mut first = None;
     if follow && !pass.advice.is_empty() {
         let advised_dir = dir.join("advised");
@@ -387,15 +387,8 @@ fn run_case(seed: u64, index: usize, kind: suite::Kind, root: &Path) -> Outcome 
     Outcome {
         label: case.describe(),
         expected: case.kind.expected().iter().map(|s| s.to_string()).collect(),
-        strict: pass.strict,
-        graded: pass.graded,
-        graded_label: match first {
-            Some(f) => format!("{f} -> (advice followed) {}", pass.graded_label),
-            None => pass.graded_label,
-        },
-        identified: pass.identified,
-        constants: pass.constants,
-        advice: pass.advice,
+        pass,
+        first_label: first,
         seconds: started.elapsed().as_secs_f64(),
     }
 }
@@ -446,20 +439,24 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
                 let o = run_case(seed, i, kinds[i].clone(), &root_path);
                 println!(
                     "{} {:2} {} -> {} (identified {}; {:.0} s){}",
-                    match (o.strict, o.graded) {
+                    match (o.pass.strict, o.pass.graded) {
                         (true, _) => "ok    ",
                         (false, true) => "graded",
                         (false, false) => "MISS  ",
                     },
                     i,
                     o.label,
-                    o.graded_label,
-                    o.identified,
+                    match &o.first_label {
+                        Some(first) =>
+                            format!("{first} -> (advice followed) {}", o.pass.graded_label),
+                        None => o.pass.graded_label.clone(),
+                    },
+                    o.pass.identified,
                     o.seconds,
-                    if o.strict {
+                    if o.pass.strict {
                         String::new()
                     } else {
-                        format!("; advice: {}", o.advice.join(", "))
+                        format!("; advice: {}", o.pass.advice.join(", "))
                     }
                 );
                 outcomes.lock().expect("no panic").push(o);
@@ -478,7 +475,7 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
     let mut within = 0;
     for o in &noise_only {
         let errors: Vec<f64> = (0..3)
-            .map(|k| 100.0 * (o.constants[k] / truth[k] - 1.0))
+            .map(|k| 100.0 * (o.pass.constants[k] / truth[k] - 1.0))
             .collect();
         within += usize::from(errors.iter().all(|e| e.abs() <= 3.0));
         println!(
@@ -492,8 +489,8 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
             noise_only.len()
         );
     }
-    let strict = outcomes.iter().filter(|o| o.strict).count();
-    let correct = outcomes.iter().filter(|o| o.graded).count();
+    let strict = outcomes.iter().filter(|o| o.pass.strict).count();
+    let correct = outcomes.iter().filter(|o| o.pass.graded).count();
     println!(
         "identify -> diagnose, seed {seed}: {correct}/{} correct (graded, the diagnosis suite's \
          scoring); {strict} strict",
@@ -502,7 +499,7 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
     // Every report short of the truth names a recording that would separate its candidates.
     let unadvised: Vec<&str> = outcomes
         .iter()
-        .filter(|o| !o.strict && o.advice.is_empty())
+        .filter(|o| !o.pass.strict && o.pass.advice.is_empty())
         .map(|o| o.label.as_str())
         .collect();
     assert!(
