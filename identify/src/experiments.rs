@@ -11,8 +11,21 @@
 //!    largest peak of its Hann-windowed spectrum ([`maglab_signal::spectrum::dominant_tone`]). A file is
 //!    dynamic when the current is a sinusoid — at least [`ClassifyOptions::tonal_min_fraction`]
 //!    (default 0.9) of its AC power within ±3 bins of the peak — at a frequency of at least
-//!    [`ClassifyOptions::dynamic_min_hz`] (default 10 Hz); every other file (reversal sequences
-//!    such as `maglab excite`, slow sweeps, slow sines) is quasi-static.
+//!    [`ClassifyOptions::dynamic_min_hz`] (default 10 Hz). Every other file is quasi-static when
+//!    its current is **slow everywhere** (slow sines, reversal sequences such as `maglab excite
+//!    --design forc`, slow sweeps, holds), and **not used** otherwise (a thermal soak: a sine, a
+//!    hold, the sine again; a step), with the classification saying where it was fast: the static
+//!    model (6) does not describe its fast parts, and one sinusoid does not describe the whole.
+//!
+//! Slow everywhere: over every interval `Δt` of 1, 2, 4, … samples up to
+//! `SLOW_WINDOW_PERIODS / dynamic_min_hz`, the current changes by at most what a sine at
+//! `dynamic_min_hz` spanning the record's range `r` does at its steepest, `r sin(π
+//! dynamic_min_hz Δt)`, plus [`NOISE_Z`] standard deviations of the noise of a difference
+//! ([`steepest_change`]). The static model's error on a record is the lag of (4)-(5) times the
+//! current's rate of change; the rule bounds that rate by the one rule 2 accepts for a sinusoid,
+//! so both admit the same error. Short intervals catch a fast sine of small amplitude, long ones
+//! a slope the noise hides from one sample to the next; the noise allowance is calibrated to a
+//! false-alarm rate, not chosen on records.
 //!
 //! Why these thresholds: a pure sine puts > 99.9 % of its Hann-windowed power within ±2 bins; a
 //! sequence of reversals at a constant sweep rate (every FORC excitation) spreads it over the
@@ -23,9 +36,11 @@
 //!
 //! Rule 2 needs nothing from the producer of the data, so datasets written by other tools
 //! (`maglab rig`, a lab logger) work as they are; rule 1 overrides it when the producer knows
-//! better (e.g. a 20 Hz sine meant as quasi-static data for a slow material).
+//! better (e.g. a 20 Hz sine meant as quasi-static data for a slow material, or a record that
+//! is not slow everywhere but should be fitted as quasi-static all the same).
 
 use maglab_dataset::data::{load_measurement, DataError, Measurement};
+use maglab_signal::noise::white_noise_sigma;
 use maglab_signal::spectrum::{dominant_tone, refine_frequency, Tone};
 use std::path::{Path, PathBuf};
 
@@ -33,6 +48,12 @@ use std::path::{Path, PathBuf};
 pub const QUASI_STATIC_DIR: &str = "quasi-static";
 /// Sub-folder of dynamic files (rule 1).
 pub const DYNAMIC_DIR: &str = "dynamic";
+
+/// The longest interval over which rule 2 measures how fast a current changes, in periods of
+/// `dynamic_min_hz` (module docs): short enough that a change still compares slopes
+/// (`sin(π/20)` is `π/20` within 0.4 %), long enough (50 samples at 10 kHz and 10 Hz) that a
+/// slope is measured above the noise.
+pub const SLOW_WINDOW_PERIODS: f64 = 0.05;
 
 /// Thresholds of rule 2.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -72,13 +93,35 @@ pub struct DynamicExperiment {
     pub tone: Tone,
 }
 
+/// What a file is used for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// The Preisach masses, through the static model (6).
+    QuasiStatic,
+    /// R_eddy, ξ, f0, through (4)-(5).
+    Dynamic,
+    /// Neither a sinusoid nor slow everywhere: not read by the identification.
+    NotUsed,
+}
+
+impl Kind {
+    /// The name in reports and in `dataset_classification`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::QuasiStatic => "quasi-static",
+            Kind::Dynamic => "dynamic",
+            Kind::NotUsed => "not used",
+        }
+    }
+}
+
 /// Classification record of one file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Classified {
     /// The file.
     pub path: PathBuf,
-    /// Dynamic (true) or quasi-static.
-    pub dynamic: bool,
+    /// What it is used for.
+    pub kind: Kind,
     /// Which rule decided.
     pub rule: Rule,
     /// The current's dominant tone (None for a constant current).
@@ -169,6 +212,147 @@ fn dynamic_experiment(m: Measurement, tone: Tone) -> DynamicExperiment {
     }
 }
 
+/// Rule 2 for one file: its kind and one line saying why.
+fn classify_by_spectrum(
+    m: &Measurement,
+    tone: Option<Tone>,
+    options: &ClassifyOptions,
+) -> (Kind, String) {
+    let Some(t) = tone else {
+        return (
+            Kind::QuasiStatic,
+            "constant current: no excitation frequency".to_string(),
+        );
+    };
+    let tonal = t.tonal_fraction >= options.tonal_min_fraction;
+    if tonal && t.frequency_hz >= options.dynamic_min_hz {
+        return (
+            Kind::Dynamic,
+            format!(
+                "sinusoid at {:.3} Hz ({:.1} % of the AC power in the peak)",
+                t.frequency_hz,
+                100.0 * t.tonal_fraction
+            ),
+        );
+    }
+    // Quasi-static only if slow everywhere: a record whose power sits at a low peak (a long hold
+    // between short fast parts does) is not thereby slow.
+    let shape = if tonal {
+        format!(
+            "sinusoid at {:.3} Hz < {} Hz",
+            t.frequency_hz, options.dynamic_min_hz
+        )
+    } else {
+        format!(
+            "not a sinusoid ({:.1} % of the current's AC power in its peak at {:.3} Hz, < {:.0} %)",
+            100.0 * t.tonal_fraction,
+            t.frequency_hz,
+            100.0 * options.tonal_min_fraction
+        )
+    };
+    let steepest = steepest_change(&m.current_a, m.step_s, options.dynamic_min_hz);
+    if steepest.change_a <= steepest.limit_a {
+        (
+            Kind::QuasiStatic,
+            format!("{shape}, slow everywhere: the static model (6)"),
+        )
+    } else {
+        (
+            Kind::NotUsed,
+            format!(
+                "{shape}, but not slow everywhere: its current changes by {:.4} A within \
+                 {:.2} ms at t = {:.3} s, more than a {} Hz sine spanning its {:.4} A range does \
+                 (with the noise, {:.4} A); neither the static model (6) nor one sinusoid \
+                 describes it (put it in `{QUASI_STATIC_DIR}/` to fit it as quasi-static data)",
+                steepest.change_a,
+                1e3 * steepest.window_s,
+                steepest.at_s,
+                options.dynamic_min_hz,
+                steepest.range_a,
+                steepest.limit_a
+            ),
+        )
+    }
+}
+
+/// Where a current changes fastest against what rule 2 allows (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SteepestChange {
+    /// The change `|i(t + Δt) − i(t)|` that exceeds its allowance most (or comes closest), A.
+    pub change_a: f64,
+    /// Where it starts (`t` from the first sample), s.
+    pub at_s: f64,
+    /// Its interval `Δt`, s (a whole number of samples).
+    pub window_s: f64,
+    /// The record's range `r = max i − min i`, A.
+    pub range_a: f64,
+    /// What rule 2 allows over `Δt`: a sine at `dynamic_min_hz` spanning `r`, `r sin(π f Δt)`,
+    /// plus [`NOISE_Z`] standard deviations of the noise of a difference, A.
+    pub limit_a: f64,
+}
+
+/// Standard deviations of a difference's noise (`√2 σ`, σ the current's white noise) that rule 2
+/// adds to its allowance: a record of 10⁶ samples is compared over ≈ 10 intervals, 10⁷
+/// differences, and with Gaussian noise the chance that any exceeds 6.5 standard deviations is
+/// below 10⁷ · 8·10⁻¹¹ ≈ 10⁻³ (union bound). So noise alone calls a slow record fast less
+/// than once in a thousand records.
+pub const NOISE_Z: f64 = 6.5;
+
+/// How fast `current_a` (sampled every `step_s`) changes against a sine at `dynamic_min_hz`
+/// spanning its range (module docs), over intervals of 1, 2, 4, … samples up to
+/// `SLOW_WINDOW_PERIODS / dynamic_min_hz`: the short ones catch a fast sine of small amplitude
+/// (over a long interval its change saturates at twice its amplitude), the long ones a slope
+/// that the noise hides from sample to sample. Returns the interval whose change exceeds its
+/// allowance by the largest factor.
+pub fn steepest_change(current_a: &[f64], step_s: f64, dynamic_min_hz: f64) -> SteepestChange {
+    let n = current_a.len();
+    let (lo, hi) = current_a
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &i| {
+            (lo.min(i), hi.max(i))
+        });
+    let range_a = if n == 0 { 0.0 } else { hi - lo };
+    let noise_a = NOISE_Z * std::f64::consts::SQRT_2 * white_noise_sigma(current_a);
+    let longest = ((SLOW_WINDOW_PERIODS / (dynamic_min_hz * step_s)).round() as usize)
+        .clamp(1, n.saturating_sub(1).max(1));
+    let windows = std::iter::successors(Some(1usize), |&w| Some(2 * w))
+        .take_while(|&w| w < longest)
+        .chain(std::iter::once(longest));
+    let mut worst: Option<(f64, SteepestChange)> = None;
+    for window in windows {
+        let window_s = window as f64 * step_s;
+        // A sine of amplitude r/2 at f changes by at most r sin(π f Δt) over Δt (up to 1/2f).
+        let phase =
+            (std::f64::consts::PI * dynamic_min_hz * window_s).min(std::f64::consts::FRAC_PI_2);
+        let limit_a = range_a * phase.sin() + noise_a;
+        let (at, change_a) = (0..n.saturating_sub(window))
+            .map(|k| (k, (current_a[k + window] - current_a[k]).abs()))
+            .fold((0, 0.0f64), |best, c| if c.1 > best.1 { c } else { best });
+        let ratio = if limit_a > 0.0 {
+            change_a / limit_a
+        } else {
+            0.0
+        };
+        if worst.as_ref().is_none_or(|(r, _)| ratio > *r) {
+            let c = SteepestChange {
+                change_a,
+                at_s: at as f64 * step_s,
+                window_s,
+                range_a,
+                limit_a,
+            };
+            worst = Some((ratio, c));
+        }
+    }
+    worst.map(|(_, c)| c).unwrap_or(SteepestChange {
+        change_a: 0.0,
+        at_s: 0.0,
+        window_s: 0.0,
+        range_a,
+        limit_a: 0.0,
+    })
+}
+
 /// Reads and classifies a dataset folder (see the module docs).
 pub fn load_split_dataset(
     dir: &Path,
@@ -217,7 +401,7 @@ pub fn load_split_dataset(
                     })?;
                 classification.push(Classified {
                     path: path.clone(),
-                    dynamic: true,
+                    kind: Kind::Dynamic,
                     rule: Rule::Folder,
                     tone,
                     reason: format!("in `{DYNAMIC_DIR}/`: sinusoid at {:.3} Hz", t.frequency_hz),
@@ -226,7 +410,7 @@ pub fn load_split_dataset(
             } else {
                 classification.push(Classified {
                     path: path.clone(),
-                    dynamic: false,
+                    kind: Kind::QuasiStatic,
                     rule: Rule::Folder,
                     tone,
                     reason: format!("in `{QUASI_STATIC_DIR}/`"),
@@ -238,55 +422,36 @@ pub fn load_split_dataset(
     for path in top_files {
         let m = load_measurement(&path)?;
         let tone = tone_of(&m);
-        let (is_dynamic, reason) = match tone {
-            None => (
-                false,
-                "constant current: no excitation frequency".to_string(),
-            ),
-            Some(t) if t.tonal_fraction < options.tonal_min_fraction => (
-                false,
-                format!(
-                    "not a sinusoid ({:.1} % of the current's AC power in its peak at {:.3} Hz, \
-                     < {:.0} %)",
-                    100.0 * t.tonal_fraction,
-                    t.frequency_hz,
-                    100.0 * options.tonal_min_fraction
-                ),
-            ),
-            Some(t) if t.frequency_hz < options.dynamic_min_hz => (
-                false,
-                format!(
-                    "sinusoid at {:.3} Hz < {} Hz: slow enough for the static model (6)",
-                    t.frequency_hz, options.dynamic_min_hz
-                ),
-            ),
-            Some(t) => (
-                true,
-                format!(
-                    "sinusoid at {:.3} Hz ({:.1} % of the AC power in the peak)",
-                    t.frequency_hz,
-                    100.0 * t.tonal_fraction
-                ),
-            ),
-        };
+        let (kind, reason) = classify_by_spectrum(&m, tone, options);
         classification.push(Classified {
             path: path.clone(),
-            dynamic: is_dynamic,
+            kind,
             rule: Rule::Spectrum,
             tone,
             reason,
         });
-        match (is_dynamic, tone) {
-            (true, Some(t)) => dynamic.push(dynamic_experiment(m, t)),
-            _ => quasi_static.push(m),
+        match (kind, tone) {
+            (Kind::Dynamic, Some(t)) => dynamic.push(dynamic_experiment(m, t)),
+            (Kind::QuasiStatic, _) => quasi_static.push(m),
+            _ => {}
         }
     }
-    if quasi_static.is_empty() && dynamic.is_empty() {
+    if classification.is_empty() {
         return Err(DataError::file(
             dir,
             format!(
                 "no measurement files (`*.csv`) in the dataset folder or its `{QUASI_STATIC_DIR}/` \
                  and `{DYNAMIC_DIR}/` sub-folders"
+            ),
+        ));
+    }
+    if quasi_static.is_empty() && dynamic.is_empty() {
+        return Err(DataError::file(
+            dir,
+            format!(
+                "no file of the dataset folder can be used: none is a sinusoid or slow \
+                 everywhere ({}); put the files to fit as quasi-static data in `{QUASI_STATIC_DIR}/`",
+                classification[0].reason
             ),
         ));
     }

@@ -637,3 +637,136 @@ mod reach {
         assert_eq!(Reach::of_currents([&[f64::NAN][..]], 1.0), None);
     }
 }
+
+mod experiments {
+    use maglab_dataset::data::write_measurement;
+    use maglab_dataset::records::{sine_record, soak_record, Sine};
+    use maglab_identify::experiments::{
+        load_split_dataset, steepest_change, ClassifyOptions, Kind,
+    };
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    use std::path::Path;
+
+    const RATE_HZ: f64 = 10_000.0;
+
+    /// A triangle between `lo` and `hi` A at `f` Hz for `seconds`, sampled at `RATE_HZ`.
+    fn triangle(lo: f64, hi: f64, f: f64, seconds: f64) -> Vec<f64> {
+        let n = (seconds * RATE_HZ) as usize;
+        (0..n)
+            .map(|k| {
+                let phase = (k as f64 / RATE_HZ * f).fract();
+                let up = 1.0 - (2.0 * phase - 1.0).abs();
+                lo + (hi - lo) * up
+            })
+            .collect()
+    }
+
+    fn write(dir: &Path, name: &str, current_a: &[f64]) {
+        let t: Vec<f64> = (0..current_a.len()).map(|k| k as f64 / RATE_HZ).collect();
+        let y: Vec<f64> = current_a.iter().map(|i| 1e-6 * i).collect();
+        write_measurement(&dir.join(name), &t, current_a, &y, None).unwrap();
+    }
+
+    #[test]
+    fn a_sine_at_the_dynamic_limit_changes_as_fast_as_the_rule_allows() {
+        // The rule's limit is the steepest change of a sine at `dynamic_min_hz` spanning the
+        // record: such a sine meets it (within the sampling), a 20 % faster one exceeds it.
+        let o = ClassifyOptions::default();
+        let sine = |f: f64| {
+            sine_record(
+                &Sine {
+                    frequency_hz: f,
+                    amplitude_a: 0.4,
+                    bias_a: 0.5,
+                    duration_s: 1.0,
+                },
+                RATE_HZ,
+            )
+            .current_a
+        };
+        let at = steepest_change(&sine(o.dynamic_min_hz), 1.0 / RATE_HZ, o.dynamic_min_hz);
+        assert!((at.range_a - 0.8).abs() < 1e-6, "{at:?}");
+        assert!((at.change_a / at.limit_a - 1.0).abs() < 1e-3, "{at:?}");
+        let faster = steepest_change(
+            &sine(1.2 * o.dynamic_min_hz),
+            1.0 / RATE_HZ,
+            o.dynamic_min_hz,
+        );
+        assert!(faster.change_a > 1.15 * faster.limit_a, "{faster:?}");
+    }
+
+    #[test]
+    fn a_noisy_reversal_sweep_is_slow_everywhere() {
+        // The bench's FORC sweep runs as a full-range triangle at 2 Hz (`FORC_SWEEP_HZ`), 8
+        // times slower than the limit; current noise of 1 % of the range does not make it fast.
+        let o = ClassifyOptions::default();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 0.02).unwrap();
+        let i: Vec<f64> = triangle(-1.0, 1.0, 2.0, 5.0)
+            .into_iter()
+            .map(|i| i + noise.sample(&mut rng))
+            .collect();
+        let s = steepest_change(&i, 1.0 / RATE_HZ, o.dynamic_min_hz);
+        assert!(s.change_a < s.limit_a, "{s:?}");
+        let clean = steepest_change(
+            &triangle(-1.0, 1.0, 2.0, 5.0),
+            1.0 / RATE_HZ,
+            o.dynamic_min_hz,
+        );
+        assert!(clean.change_a < 0.15 * clean.limit_a, "{clean:?}");
+    }
+
+    #[test]
+    fn a_thermal_soak_is_not_used_unless_its_folder_says_quasi_static() {
+        let dir = tempfile::tempdir().unwrap();
+        let sine = Sine {
+            frequency_hz: 100.0,
+            amplitude_a: 0.1,
+            bias_a: 0.3,
+            duration_s: 1.0,
+        };
+        // A hold near the limit for 20 s between the sines: the sines are 9 % of the record and
+        // its spectrum's peak is the hold's, below 10 Hz; it is not quasi-static all the same.
+        let soak = soak_record(&sine, 1.5, 20.0, RATE_HZ, 2.0).unwrap();
+        write(dir.path(), "00_forc.csv", &triangle(-1.0, 1.0, 2.0, 3.0));
+        write(
+            dir.path(),
+            "01_sine.csv",
+            &sine_record(&sine, RATE_HZ).current_a,
+        );
+        write(dir.path(), "02_soak.csv", &soak.current_a);
+        let split = load_split_dataset(dir.path(), &ClassifyOptions::default()).unwrap();
+        let kinds: Vec<Kind> = split.classification.iter().map(|c| c.kind).collect();
+        assert_eq!(kinds, [Kind::QuasiStatic, Kind::Dynamic, Kind::NotUsed]);
+        assert_eq!((split.quasi_static.len(), split.dynamic.len()), (1, 1));
+        let why = &split.classification[2].reason;
+        println!("{why}");
+        assert!(
+            why.contains("but not slow everywhere") && why.contains("quasi-static/"),
+            "{why}"
+        );
+
+        // The sub-folder overrides rule 2.
+        let qs = dir.path().join("quasi-static");
+        std::fs::create_dir(&qs).unwrap();
+        std::fs::rename(dir.path().join("02_soak.csv"), qs.join("02_soak.csv")).unwrap();
+        let split = load_split_dataset(dir.path(), &ClassifyOptions::default()).unwrap();
+        assert_eq!(split.quasi_static.len(), 2);
+    }
+
+    #[test]
+    fn a_folder_of_records_none_of_which_can_be_used_is_an_error_saying_why() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut step = vec![0.0; 5_000];
+        step.extend(vec![1.0; 5_000]);
+        write(dir.path(), "step.csv", &step);
+        let e = load_split_dataset(dir.path(), &ClassifyOptions::default()).unwrap_err();
+        let text = e.to_string();
+        assert!(
+            text.contains("no file of the dataset folder can be used"),
+            "{text}"
+        );
+        assert!(text.contains("but not slow everywhere"), "{text}");
+    }
+}

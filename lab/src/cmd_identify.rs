@@ -247,12 +247,7 @@ fn print_dataset(args: &Args, dataset: &RecordedDataset) {
         println!("not read (not a *.csv file): {}", p.display());
     }
     for c in &dataset.split.classification {
-        println!(
-            "{}: {} ({})",
-            c.path.display(),
-            if c.dynamic { "dynamic" } else { "quasi-static" },
-            c.reason
-        );
+        println!("{}: {} ({})", c.path.display(), c.kind.name(), c.reason);
     }
     if let Some(a) = &dataset.amplifier {
         println!(

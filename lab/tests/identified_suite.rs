@@ -321,8 +321,7 @@ fn follow_advice(
     let recorded = dir.join("recorded");
     write_dataset(&recorded, &recordings).expect("dataset written");
     // The advice says to identify again with the loops the masses were not measured on
-    // (`measured_loops`); the other recordings are for the diagnosis (a soak's hold is no
-    // quasi-static record to fit masses on).
+    // (`measured_loops`); the other recordings are for the diagnosis.
     let measured_loops = |name: &str| name.starts_with("z_measured_loops_");
     let identify = merged_folder(&dir.join("identify"), data, &recorded, measured_loops);
     let diagnose = merged_folder(&dir.join("data"), data, &recorded, |_| true);

@@ -104,7 +104,7 @@ pub fn record(params: &mut ActuatorParams, fit: &DynamicFit, split: &SplitDatase
             .iter()
             .map(|c| json!({
                 "file": c.path.display().to_string(),
-                "kind": if c.dynamic { "dynamic" } else { "quasi-static" },
+                "kind": c.kind.name(),
                 "rule": match c.rule { Rule::Folder => "sub-folder", Rule::Spectrum => "spectrum" },
                 "reason": c.reason,
             }))
