@@ -409,9 +409,10 @@ fn identified_then_diagnosed_suite_names_the_right_effect() {
             .filter(|(_, k)| matches!(k, suite::Kind::NoiseOnly))
             .map(|(i, _)| i)
             .collect(),
-        // A count N (the first N cases) or a list of case numbers, `3,11,14`.
+        // A count N (the first N cases) or a list of case numbers, `3,11,14` (one case: `31,`).
         Ok(s) if s.contains(',') => s
             .split(',')
+            .filter(|i| !i.trim().is_empty())
             .map(|i| i.trim().parse().expect("IDENTIFIED_CASES: case numbers"))
             .collect(),
         Ok(s) => (0..s.parse::<usize>().expect("IDENTIFIED_CASES")).collect(),
