@@ -12,10 +12,16 @@
 //!    dynamic when the current is a sinusoid — at least [`ClassifyOptions::tonal_min_fraction`]
 //!    (default 0.9) of its AC power within ±3 bins of the peak — at a frequency of at least
 //!    [`ClassifyOptions::dynamic_min_hz`] (default 10 Hz). Every other file is quasi-static when
-//!    its current is **slow everywhere** (slow sines, reversal sequences such as `maglab excite
-//!    --design forc`, slow sweeps, holds), and **not used** otherwise (a thermal soak: a sine, a
-//!    hold, the sine again; a step), with the classification saying where it was fast: the static
-//!    model (6) does not describe its fast parts, and one sinusoid does not describe the whole.
+//!    its current holds no stretch of sinusoid and is **slow everywhere** (slow sines, reversal
+//!    sequences such as `maglab excite --design forc`, slow sweeps, holds), and **not used**
+//!    otherwise (a thermal soak: a sine, a hold, the sine again; a step), with the
+//!    classification saying where and why: the static model (6) does not describe its fast
+//!    parts, and one sinusoid does not describe the whole.
+//!
+//! A stretch of sinusoid: [`STRETCH_PERIODS`] periods of `dynamic_min_hz` on which the current
+//! passes the test above for a dynamic sinusoid ([`sinusoidal_stretch`]). A record holding one
+//! mixes a dynamic experiment with other excitation; a soak's sines can be slow against its
+//! range, yet its hold heats the rod, and the static model describes neither.
 //!
 //! Slow everywhere: over every interval `Δt` of 1, 2, 4, … samples up to
 //! `SLOW_WINDOW_PERIODS / dynamic_min_hz`, the current changes by at most what a sine at
@@ -250,6 +256,21 @@ fn classify_by_spectrum(
             100.0 * options.tonal_min_fraction
         )
     };
+    if let Some(stretch) = sinusoidal_stretch(&m.current_a, m.step_s, options) {
+        return (
+            Kind::NotUsed,
+            format!(
+                "{shape}, but from t = {:.3} s to {:.3} s a sinusoid at {:.3} Hz ({:.1} % of that \
+                 stretch's AC power in its peak): a dynamic excitation among others, which \
+                 neither the static model (6) nor one sinusoid describes (put it in \
+                 `{QUASI_STATIC_DIR}/` to fit it as quasi-static data)",
+                stretch.start_s,
+                stretch.end_s,
+                stretch.tone.frequency_hz,
+                100.0 * stretch.tone.tonal_fraction
+            ),
+        );
+    }
     let steepest = steepest_change(&m.current_a, m.step_s, options.dynamic_min_hz);
     if steepest.change_a <= steepest.limit_a {
         (
@@ -273,6 +294,53 @@ fn classify_by_spectrum(
             ),
         )
     }
+}
+
+/// The length of the stretches [`sinusoidal_stretch`] tests, in periods of `dynamic_min_hz`:
+/// the shortest on which rule 2's test resolves a sine at `dynamic_min_hz` (its peak falls 5 bins
+/// above DC, the Hann window's leakage of the stretch's mean and of the peak spans 2 bins each).
+pub const STRETCH_PERIODS: f64 = 5.0;
+
+/// A stretch of a record on which the current passes rule 2's test for a dynamic sinusoid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SinusoidalStretch {
+    /// Its first sample's time from the record's start, s.
+    pub start_s: f64,
+    /// Its end, s.
+    pub end_s: f64,
+    /// Its dominant tone.
+    pub tone: Tone,
+}
+
+/// The first stretch of [`STRETCH_PERIODS`] periods of `dynamic_min_hz` (hops of a quarter of
+/// it, and the record's last stretch) on which `current_a` is a dynamic sinusoid by rule 2: a
+/// record that holds one beside other excitation (a thermal soak: a sine, a hold, the sine
+/// again) mixes a dynamic experiment into whatever else it is. `None` for a record shorter than
+/// two stretches (the whole-record test is the one that applies).
+pub fn sinusoidal_stretch(
+    current_a: &[f64],
+    step_s: f64,
+    options: &ClassifyOptions,
+) -> Option<SinusoidalStretch> {
+    let n = current_a.len();
+    let len = (STRETCH_PERIODS / (options.dynamic_min_hz * step_s)).round() as usize;
+    if len < 8 || n < 2 * len {
+        return None;
+    }
+    let hop = (len / 4).max(1);
+    let starts = (0..=n - len).step_by(hop).chain(std::iter::once(n - len));
+    starts.into_iter().find_map(|k| {
+        dominant_tone(&current_a[k..k + len], step_s)
+            .filter(|t| {
+                t.tonal_fraction >= options.tonal_min_fraction
+                    && t.frequency_hz >= options.dynamic_min_hz
+            })
+            .map(|tone| SinusoidalStretch {
+                start_s: k as f64 * step_s,
+                end_s: (k + len) as f64 * step_s,
+                tone,
+            })
+    })
 }
 
 /// Where a current changes fastest against what rule 2 allows (module docs).

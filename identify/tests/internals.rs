@@ -640,9 +640,10 @@ mod reach {
 
 mod experiments {
     use maglab_dataset::data::write_measurement;
+    use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
     use maglab_dataset::records::{sine_record, soak_record, Sine};
     use maglab_identify::experiments::{
-        load_split_dataset, steepest_change, ClassifyOptions, Kind,
+        load_split_dataset, sinusoidal_stretch, steepest_change, ClassifyOptions, Kind,
     };
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
@@ -697,6 +698,32 @@ mod experiments {
     }
 
     #[test]
+    fn the_reversal_sweeps_the_tools_write_are_quasi_static() {
+        // `maglab excite --design forc` (1 Hz) and the firmware's programme (2 Hz,
+        // `FORC_SWEEP_HZ`), at the rates they are recorded at: the first reversal curves are
+        // short excursions near the top, a stretch of them must not pass for a sinusoid.
+        let o = ClassifyOptions::default();
+        for (sweep_rate_hz, sample_rate_hz) in [(1.0, 1_000.0), (1.0, 10_000.0), (2.0, 10_000.0)] {
+            let forc = forc_excitation(&ExciteOptions {
+                h_min_a_per_m: -30_000.0,
+                h_max_a_per_m: 30_000.0,
+                coil_factor_per_m: 15_000.0,
+                sweep_rate_hz,
+                sample_rate_hz,
+                overdrive: 0.05,
+            })
+            .unwrap();
+            let step_s = 1.0 / sample_rate_hz;
+            assert_eq!(sinusoidal_stretch(&forc.current_a, step_s, &o), None);
+            let s = steepest_change(&forc.current_a, step_s, o.dynamic_min_hz);
+            assert!(
+                s.change_a < s.limit_a,
+                "{sweep_rate_hz} Hz at {sample_rate_hz} Hz: {s:?}"
+            );
+        }
+    }
+
+    #[test]
     fn a_noisy_reversal_sweep_is_slow_everywhere() {
         // The bench's FORC sweep runs as a full-range triangle at 2 Hz (`FORC_SWEEP_HZ`), 8
         // times slower than the limit; current noise of 1 % of the range does not make it fast.
@@ -720,15 +747,24 @@ mod experiments {
     #[test]
     fn a_thermal_soak_is_not_used_unless_its_folder_says_quasi_static() {
         let dir = tempfile::tempdir().unwrap();
+        // The soak `maglab diagnose` advises: the design's slowest sine (20 Hz, 0.18 A around
+        // 0.53 A), a hold at 0.9 of a 2.2 A limit, the sine again. Its spectrum peaks at the
+        // hold's 0.02 Hz, and its sines change the current more slowly than a 10 Hz sine over
+        // its 1.45 A range would: the stretches of sine make it a dynamic experiment mixed with
+        // a hold all the same.
         let sine = Sine {
-            frequency_hz: 100.0,
-            amplitude_a: 0.1,
-            bias_a: 0.3,
+            frequency_hz: 20.0,
+            amplitude_a: 0.18,
+            bias_a: 0.53,
             duration_s: 1.0,
         };
-        // A hold near the limit for 20 s between the sines: the sines are 9 % of the record and
-        // its spectrum's peak is the hold's, below 10 Hz; it is not quasi-static all the same.
-        let soak = soak_record(&sine, 1.5, 20.0, RATE_HZ, 2.0).unwrap();
+        let soak = soak_record(&sine, 1.98, 20.0, RATE_HZ, 2.2).unwrap();
+        let sine_slope_a_per_s = soak.current_a[..10_000]
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs() * RATE_HZ)
+            .fold(0.0, f64::max);
+        let range_a = 1.98 - (0.53 - 0.18);
+        assert!(sine_slope_a_per_s < std::f64::consts::PI * 10.0 * range_a);
         write(dir.path(), "00_forc.csv", &triangle(-1.0, 1.0, 2.0, 3.0));
         write(
             dir.path(),
@@ -743,7 +779,7 @@ mod experiments {
         let why = &split.classification[2].reason;
         println!("{why}");
         assert!(
-            why.contains("but not slow everywhere") && why.contains("quasi-static/"),
+            why.contains("a sinusoid at 20.0") && why.contains("quasi-static/"),
             "{why}"
         );
 
