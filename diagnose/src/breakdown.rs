@@ -11,8 +11,16 @@
 //! 1 % of the motion (the size of difference a loop plot like the paper's Figure 6 shows). The
 //! gap starts at the lowest band from which every higher band disagrees. Every band is judged on
 //! its own data, whatever the parameters were identified on.
+//!
+//! **Drift** (a finding of its own, whatever the model): hysteresis returns to the same state
+//! each time a quasi-static record revisits an extreme of its current after the other one
+//! (wiping out), so a reading that differs there beyond `maglab_model::drift::DRIFT_LIMIT` of the
+//! record's range is something that depends on time (the coil heating the rod, creep, a drifting
+//! sensor) or friction, and masses fitted to that record absorb it. The same check warns in
+//! `maglab identify`; here it covers the records being diagnosed.
 
 use maglab_dataset::data::Measurement;
+use maglab_model::drift::drift_warning;
 use maglab_model::experiments::ExperimentInfo;
 use maglab_model::residual::systematic;
 use maglab_signal::{branches, spectrum};
@@ -308,7 +316,22 @@ pub fn analyse(
         summary: Vec::new(),
     };
     w.summary = summarize(&w, noise_m);
+    w.summary.extend(drift_findings(measurements, infos));
     w
+}
+
+/// The quasi-static records that read one state differently on their returns to it (module
+/// docs), one finding each.
+fn drift_findings(measurements: &[Measurement], infos: &[ExperimentInfo]) -> Vec<String> {
+    measurements
+        .iter()
+        .zip(infos)
+        .filter(|(_, info)| info.quasi_static)
+        .filter_map(|(m, info)| {
+            drift_warning(&info.name, &m.t_s, &m.current_a, &m.displacement_m)
+                .map(|w| format!("Drift in a quasi-static record: {w}."))
+        })
+        .collect()
 }
 
 /// The plain-language findings.

@@ -1,4 +1,4 @@
-//! Scans quasi-static records for drift (`maglab_identify::drift`): per file, the counted visits to
+//! Scans quasi-static records for drift (`maglab_model::drift`): per file, the counted visits to
 //! the largest and the smallest current, their spread as a fraction of the record's displacement
 //! range, and whether `maglab identify` would warn. The figures in `drift`'s module docs come from the sweeps the identified suite writes (`IDENTIFIED_DIR=DIR
 //! IDENTIFIED_SEED=N cargo test --release -p maglab --test identified_suite -- --ignored`):
@@ -8,7 +8,7 @@
 //! ```
 
 use maglab_dataset::data::load_measurement;
-use maglab_identify::drift::{drift_warning, extreme_visits, DRIFT_LIMIT};
+use maglab_model::drift::{drift_warning, extreme_visits, DRIFT_LIMIT};
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -106,7 +106,8 @@ pub enum Kind {
     QuasiStatic,
     /// R_eddy, ξ, f0, through (4)-(5).
     Dynamic,
-    /// Neither a sinusoid nor slow everywhere: not read by the identification.
+    /// Not a dynamic sinusoid, and either not slow everywhere or holding a stretch of one: not
+    /// read by the identification.
     NotUsed,
 }
 

@@ -19,8 +19,6 @@
 //!   reach (a rod the coil cannot saturate).
 //! * [`masses`]: the 325 masses of a quasi-static dataset, through [`magnetization`]
 //!   (displacement → magnetization by the static model (6)).
-//! * [`drift`]: whether a quasi-static record returns to the same state with the same reading
-//!   (a time-dependent effect or friction otherwise: a warning of `maglab identify`).
 //! * [`experiments`]: the dataset convention — which files are quasi-static and which are dynamic
 //!   (sub-folders `quasi-static/`, `dynamic/`, or the spectrum of each file's current, with
 //!   `maglab_signal::spectrum`).
@@ -42,7 +40,6 @@ pub mod cells;
 pub mod columns;
 pub mod coverage;
 pub mod design;
-pub mod drift;
 pub mod dynamics;
 pub mod experiments;
 pub mod fit;

@@ -1,4 +1,4 @@
-//! `maglab identify`'s drift check (`maglab_identify::drift`) on the reversal sweeps of the bench
+//! `maglab identify`'s drift check (`maglab_model::drift`) on the reversal sweeps of the bench
 //! plant (`maglab-plant`: its own Preisach evaluation, integrator and effect forms, none shared
 //! with the check): a sweep whose returns to the same extreme read differently is warned about
 //! when something time-dependent or friction moves the rod, and only then — not for hysteresis,
@@ -6,7 +6,7 @@
 //! as the blind suite draws them (`maglab_plant::suite`); the 64 sweeps of its seeds 1 and 4 are
 //! in the module docs of `drift`.
 
-use maglab_identify::drift::drift_warning;
+use maglab_model::drift::drift_warning;
 use maglab_plant::bench::{forc_experiment, record};
 use maglab_plant::{BenchSettings, Effect, Plant};
 
@@ -105,7 +105,7 @@ fn programme_on_heating_plant(
             y_m.push(plant.displacement_m());
         }
     }
-    let [top, _] = maglab_identify::drift::extreme_visits(&t_s, &current_a, &y_m);
+    let [top, _] = maglab_model::drift::extreme_visits(&t_s, &current_a, &y_m);
     let range_m = y_m.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
         - y_m.iter().cloned().fold(f64::INFINITY, f64::min);
     let warning = drift_warning("00_forc.csv", &t_s, &current_a, &y_m);

@@ -12,6 +12,9 @@
 //! * [`coil_current`]: the amplifier judged on the commanded against the measured coil current,
 //!   and the measured current as the model's input;
 //! * [`coverage`]: which minor loops a file's Preisach masses were measured on;
+//! * [`drift`]: whether a quasi-static record returns to the same state with the same reading
+//!   (a time-dependent effect or friction otherwise: a warning of `maglab identify`, a finding
+//!   of `maglab diagnose`);
 //! * [`experiments`]: each record's fundamental, amplitude, bias, settling; quasi-static or not;
 //! * [`nuisance`]: the recording's start states, current between samples and channel skew,
 //!   estimated with a given model; the memory a lead-in record leaves;
@@ -23,6 +26,7 @@
 pub mod candidates;
 pub mod coil_current;
 pub mod coverage;
+pub mod drift;
 pub mod effects;
 pub mod experiments;
 pub mod fit;

@@ -791,6 +791,87 @@ mod coverage {
     }
 }
 
+mod drift {
+    use maglab_model::drift::*;
+
+    /// A triangle sweep between ±2 A, `periods` periods at 1 Hz, sampled at 1 kHz, and a
+    /// hysteretic displacement: a play (backlash) operator of half-width 0.3 A on the current,
+    /// through a static nonlinearity, times `gain(t)`.
+    fn sweep(periods: usize, gain: impl Fn(f64) -> f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let n = periods * 1000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let i: Vec<f64> = t
+            .iter()
+            .map(|&t| {
+                let p = t.fract();
+                // Starts at -2 A, up to +2 A at half a period, back down.
+                if p < 0.5 {
+                    -2.0 + 8.0 * p
+                } else {
+                    6.0 - 8.0 * p
+                }
+            })
+            .collect();
+        let mut play: f64 = -1.7;
+        let y: Vec<f64> = t
+            .iter()
+            .zip(&i)
+            .map(|(&t, &i)| {
+                play = play.max(i - 0.3).min(i + 0.3);
+                gain(t) * 30e-6 * (play / 1.7).powi(2).min(1.0)
+            })
+            .collect();
+        (t, i, y)
+    }
+
+    #[test]
+    fn visits_count_only_after_the_other_extreme() {
+        let (t, i, y) = sweep(3, |_| 1.0);
+        let [top, bottom] = extreme_visits(&t, &i, &y);
+        assert_eq!(top.visits.len(), 3);
+        // The start at -2 A comes before any visit to +2 A: not counted.
+        assert_eq!(bottom.visits.len(), 2);
+        assert!(top.spread_m() < 1e-12 && bottom.spread_m() < 1e-12);
+    }
+
+    #[test]
+    fn a_rate_independent_record_gets_no_warning() {
+        let (t, i, y) = sweep(5, |_| 1.0);
+        assert_eq!(drift_warning("forc.csv", &t, &i, &y), None);
+        // Noise below the limit neither.
+        let noisy: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(k, y)| y + 0.1e-6 * ((k * 7919 % 1000) as f64 / 500.0 - 1.0))
+            .collect();
+        assert_eq!(drift_warning("forc.csv", &t, &i, &noisy), None);
+    }
+
+    #[test]
+    fn a_slow_gain_change_is_named_with_its_figures() {
+        // The gain falls by 10 % over 5 s (a rod warming up).
+        let (t, i, y) = sweep(5, |t| 1.0 - 0.02 * t);
+        let w = drift_warning("forc.csv", &t, &i, &y).expect("a warning");
+        assert!(w.starts_with("forc.csv: at 2.000 A"), "{w}");
+        assert!(w.contains("5 visits"), "{w}");
+        // 30 µm × 0.02/s × 4 s between the first and the last visit = 2.4 µm, 8 % of 30 µm.
+        assert!(w.contains("(5 visits; 8.0 %"), "{w}");
+    }
+
+    #[test]
+    fn degenerate_records_are_no_warning() {
+        assert_eq!(drift_warning("x.csv", &[], &[], &[]), None);
+        let t = [0.0, 1.0, 2.0];
+        assert_eq!(
+            drift_warning("x.csv", &t, &[1.0; 3], &[2.0, 3.0, 4.0]),
+            None
+        );
+        assert_eq!(
+            drift_warning("x.csv", &t, &[0.0, 1.0, 0.0], &[5.0; 3]),
+            None
+        );
+    }
+}
 mod coil_current {
     use maglab_dataset::data::Measurement;
     use maglab_model::coil_current::*;

@@ -1,5 +1,5 @@
 //! Step 4 of the identification: does the identified model describe the data it came from?
-//! ([`crate::quality`] and [`crate::drift`] hold the checks and their limits.)
+//! ([`crate::quality`] and [`maglab_model::drift`] hold the checks and their limits.)
 
 use super::dynamic::fit_constants;
 use super::passes::constants_of;
@@ -61,7 +61,7 @@ fn systematic_nrmse(fit: &DynamicFit) -> Vec<(String, f64)> {
 /// * a constant the fit left at an end of its search: it has absorbed something, or the base
 ///   file is far off ([`quality::search_bound_warnings`]);
 /// * a quasi-static record whose returns to the same extreme read differently: time (or
-///   friction) rather than the shape of the loop ([`crate::drift::drift_warning`]);
+///   friction) rather than the shape of the loop ([`maglab_model::drift::drift_warning`]);
 /// * dynamic records (`dynamic_records`) whose loops no quasi-static record reverses at
 ///   ([`crate::coverage`]).
 pub fn warnings(
@@ -100,7 +100,7 @@ pub fn warnings(
         ));
     }
     for m in &quasi_static.measurements {
-        warnings.extend(crate::drift::drift_warning(
+        warnings.extend(maglab_model::drift::drift_warning(
             &file_name(&m.path),
             &m.t_s,
             &m.current_a,

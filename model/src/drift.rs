@@ -15,7 +15,7 @@
 //! 0.03–0.36 %; stick-slip 2.0–3.7 %, creep (three time constants up to 0.8 s) 5.7–9.9 %, thermal
 //! drift 6.6–73 % (a sweep that heats the coil up to the plant's 200 K limit, where the rod's
 //! magnetostriction is gone). [`DRIFT_LIMIT`] between them warns about all 17 of the last three
-//! and none of the other 47 (`examples/drift_scan.rs`); on seeds 2 and 3, scanned after the limit
+//! and none of the other 47 (`identify/examples/drift_scan.rs`); on seeds 2 and 3, scanned after the limit
 //! was set, all 12 of them (the smallest 1.31 %, a thermal drift) and none of the other 52 (the
 //! largest 0.22 %). `lab/tests/sweep_drift.rs` checks both sides on fresh sweeps.
 
