@@ -28,18 +28,28 @@ mod breakdown {
         };
         let model = t_s.iter().map(|&t| y_of(t)).collect();
         let info = ExperimentInfo {
-            name: "sine.csv".into(),
-            fundamental_hz: f_hz,
-            amplitude_a: 1.0,
             bias_a,
             settle_samples: 400,
-            quasi_static: false,
+            ..info("sine.csv", f_hz, false)
+        };
+        (measurement, model, info)
+    }
+
+    /// A record's description: `name` at `fundamental_hz`, 1 A about 0 A, a documented
+    /// demagnetized start, training, group 0.
+    fn info(name: &str, fundamental_hz: f64, quasi_static: bool) -> ExperimentInfo {
+        ExperimentInfo {
+            name: name.into(),
+            fundamental_hz,
+            amplitude_a: 1.0,
+            bias_a: 0.0,
+            settle_samples: 100,
+            quasi_static,
             held_out: false,
             frequency_group: 0,
             start_state: "demagnetized".into(),
             start_state_source: "documented".into(),
-        };
-        (measurement, model, info)
+        }
     }
 
     #[test]
@@ -92,19 +102,7 @@ mod breakdown {
             coil_current_a: None,
             step_s: 1.0 / rate_hz,
         };
-        let info = ExperimentInfo {
-            name: "00_forc.csv".into(),
-            fundamental_hz: 1.0,
-            amplitude_a: 1.0,
-            bias_a: 0.0,
-            settle_samples: 100,
-            quasi_static: true,
-            held_out: false,
-            frequency_group: 0,
-            start_state: "demagnetized".into(),
-            start_state_source: "documented".into(),
-        };
-        (measurement, model, info)
+        (measurement, model, info("00_forc.csv", 1.0, true))
     }
 
     #[test]
