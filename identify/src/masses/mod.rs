@@ -34,7 +34,7 @@ pub use start::{auto_branch, auto_initial, documented_initial, first_period_is_a
 use crate::design::{Experiment, Grid};
 use crate::fit::{fit, FitError, FitOptions, FitResult, Unexcited};
 use crate::magnetization::{magnetization, Branch, StaticModel};
-use crate::model::{nrmse, PreisachModel, FORMAT};
+use crate::model::{nrmse, PreisachModel};
 use crate::reach::{banded_grid, identification_grid, prefers_banded, IdentificationGrid, Reach};
 use actuator_params::ActuatorParams;
 use maglab_dataset::data::Dataset;
@@ -465,27 +465,17 @@ fn file_reports(
     fit_options: &FitOptions,
     model: &StaticModel,
 ) -> Vec<FileReport> {
+    let initial_state = records
+        .first()
+        .map(|r| r.initial)
+        .unwrap_or(StartState::NegativeSaturation);
     let generic = PreisachModel {
-        format: FORMAT.into(),
-        input_column: "h_a_per_m".into(),
-        output_column: "m_a_per_m".into(),
-        levels: crate::LEVELS,
-        h_min: grid.h_min,
-        h_max: grid.h_max,
-        grid_lines: grid.lines.map(|l| l.to_vec()),
-        weights: result.weights.clone(),
         offset: result.offset,
-        slope: 0.0,
         reversible_slopes: fit_options
             .reversible
             .is_piecewise()
             .then(|| result.reversible_slopes.clone()),
-        initial_state: records
-            .first()
-            .map(|r| r.initial)
-            .unwrap_or(StartState::NegativeSaturation),
-        closed_loops_periodic: false,
-        provenance: Value::Null,
+        ..PreisachModel::from_weights(*grid, &result.weights, initial_state)
     };
     records
         .iter()
