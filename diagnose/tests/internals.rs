@@ -442,6 +442,53 @@ mod grade {
     }
 
     #[test]
+    fn either_when_behind_by_less_than_the_winner_leaves_itself() {
+        // Noise 1e-7 m. The winner leaves 3e-14 m² of systematic energy on training and
+        // 3e-14 m² held out (2e-7 m RMS on each).
+        let noise = 1e-7;
+        let with = |effect: &str, training_m: f64, held_out_m: f64| {
+            let mut c = candidate(effect, held_out_m, &[], true);
+            c.training_rms_m = training_m;
+            c
+        };
+        let winner = with("sensor_dynamics", 2.0e-7, 2.0e-7);
+        let grade_of = |rival: CandidateResult| {
+            grade(
+                "sensor_dynamics",
+                &[],
+                &[winner.clone(), rival],
+                (noise, 1e-4),
+                false,
+            )
+        };
+        // Held out 5.25e-14 m² (2.25e-14 behind), training 4.76e-14 (1.76e-14 behind): both
+        // within the winner's 3e-14; 1.22x its held-out RMS, outside `AMBIGUOUS_HELD_OUT`, and
+        // 1.1x its training RMS, not equal on training.
+        let g = grade_of(with("mechanical_load", 2.4e-7, 2.5e-7));
+        assert_eq!(g.grade, Grade::Either);
+        assert_eq!(g.either, ["sensor_dynamics", "mechanical_load"]);
+        assert!(
+            g.either_reason.contains("unexplained"),
+            "{}",
+            g.either_reason
+        );
+        // 5e-14 m² behind held out: more than the winner leaves, separated.
+        assert_eq!(
+            grade_of(with("mechanical_load", 2.4e-7, 3.0e-7)).grade,
+            Grade::Effect
+        );
+        // As close held out but 3.84e-14 m² behind on training: the training separates them.
+        assert_eq!(
+            grade_of(with("mechanical_load", 2.8e-7, 2.5e-7)).grade,
+            Grade::Effect
+        );
+        // Not significant alone: never a rival.
+        let mut weak = with("mechanical_load", 2.0e-7, 2.1e-7);
+        weak.significant = false;
+        assert_eq!(grade_of(weak).grade, Grade::Effect);
+    }
+
+    #[test]
     fn an_eddy_path_is_either_it_or_a_current_loop_yielding_to_the_back_emf() {
         let eddy = candidate("eddy_frequency_dependence", 1.0e-7, &[], true);
         let amp = candidate("amplifier_bandwidth", 5.0e-7, &[], false);

@@ -6,7 +6,7 @@
 //! | `none` | the verdict is `none` | the gap is within the noise or the model's own error |
 //! | `effect` | one significant effect, no other as good | that effect explains the gap |
 //! | `pair` | a pair named (step 8) | both effects are needed |
-//! | `either` | a significant single winner and another significant candidate within [`AMBIGUOUS_HELD_OUT`] of its held-out error, or as good on training and apart on the held-out experiments by less than the winner's own training misfit, or a winner whose term another effect enters as well ([`SAME_TERM`]) | "X or Y": these experiments cannot separate them |
+//! | `either` | a significant single winner and another significant candidate within [`AMBIGUOUS_HELD_OUT`] of its held-out error, or as good on training and apart on the held-out experiments by less than the winner's own training misfit, or behind it on the training and the held-out experiments each by less than what the winner itself leaves there, or a winner whose term another effect enters as well ([`SAME_TERM`]) | "X or Y": these experiments cannot separate them |
 //! | `partly_explained` | no effect explains the gap, but one removes more than half of its energy in every held-out band, and more than half of what its own fit leaves with the effect switched off | "partly explained by X (share ± spread), the rest unexplained" |
 //! | `unexplained` | none of these | no library effect accounts for most of the gap |
 //!
@@ -133,7 +133,7 @@ pub fn grade(
             None => graded(Grade::Unexplained),
         },
         _ if !additional_effects.is_empty() => graded(Grade::Pair),
-        winner => match rival(winner, ranking, noise_m) {
+        winner => match rival(winner, ranking, (noise_m, range_m)) {
             Some((other, why)) => Graded {
                 either: vec![winner.to_string(), other.clone()],
                 either_reason: match why {
@@ -144,6 +144,11 @@ pub fn grade(
                     Rivalry::WithinTrainingMisfit => format!(
                         "{other} fits the training experiments as well, and falls behind on the \
                          held-out ones by less than {winner}'s own misfit on the training ones"
+                    ),
+                    Rivalry::WithinOwnRemainder => format!(
+                        "{other} falls behind on the training and the held-out experiments by \
+                         less than {winner} itself leaves unexplained there: the difference is \
+                         within the model's own error"
                     ),
                 },
                 ..graded(Grade::Either)
@@ -171,9 +176,15 @@ pub fn grade(
 /// where it was fitted (masses not measured on the dynamic loops, an effect's form other than the
 /// library's); its extrapolation to the held-out experiments errs at least as much, so a smaller
 /// held-out difference between two fits that the training experiments cannot tell apart ranks
-/// the model's error, not the effects.
-fn rival(winner: &str, ranking: &[CandidateResult], noise_m: f64) -> Option<(String, Rivalry)> {
+/// the model's error, not the effects. Or one behind it by less than its own remainder
+/// ([`behind_by_less_than_own_remainder`]); `range_m` the motion, for the estimate's resolution.
+fn rival(
+    winner: &str,
+    ranking: &[CandidateResult],
+    (noise_m, range_m): (f64, f64),
+) -> Option<(String, Rivalry)> {
     let w = ranking.iter().find(|c| c.effect == winner)?;
+    let floor = resolution_floor(noise_m, range_m);
     let held_out = |c: &CandidateResult| systematic_energy(c.held_out_rms_after_m, noise_m);
     let training_misfit = systematic_energy(w.training_rms_m, noise_m);
     let equal_on_training = super::verdict::equal_on_training(w, ranking.iter());
@@ -187,10 +198,35 @@ fn rival(winner: &str, ranking: &[CandidateResult], noise_m: f64) -> Option<(Str
                 && held_out(c) - held_out(w) <= training_misfit
             {
                 Some((c.effect.clone(), Rivalry::WithinTrainingMisfit))
+            } else if behind_by_less_than_own_remainder(w, c, noise_m, floor) {
+                Some((c.effect.clone(), Rivalry::WithinOwnRemainder))
             } else {
                 None
             }
         })
+}
+
+/// Does `rival` fall behind `winner` on the training and on the held-out experiments each by
+/// less systematic energy than `winner` leaves there itself (noise `noise_m` removed; energies
+/// below the estimate's resolution `floor_m` count as `floor_m`)? The winner's remainder is
+/// the model's error with the winner's effect in it (a form of the effect other than the
+/// rig's, masses not measured on the dynamic loops): a direct measure, on these experiments,
+/// of how far a right explanation may miss. A rival that misses by less than twice that may be
+/// the right effect in a form further from the library's; the data then rank the model's
+/// errors, not the effects. The bound is definitional — the difference must exceed what is
+/// left unexplained, [`PARTIAL_SHARE`]'s "more than the rest" —, not a constant fitted to
+/// cases.
+fn behind_by_less_than_own_remainder(
+    winner: &CandidateResult,
+    rival: &CandidateResult,
+    noise_m: f64,
+    floor_m: f64,
+) -> bool {
+    let energy = |rms_m: f64| systematic_energy(rms_m, noise_m).max(floor_m * floor_m);
+    let within =
+        |winner_m: f64, rival_m: f64| energy(rival_m) - energy(winner_m) <= energy(winner_m);
+    within(winner.training_rms_m, rival.training_rms_m)
+        && within(winner.held_out_rms_after_m, rival.held_out_rms_after_m)
 }
 
 /// Why [`rival`] found the held-out experiments unable to separate two candidates.
@@ -200,6 +236,9 @@ enum Rivalry {
     HeldOut,
     /// Equal on training, apart on the held-out ones by less than the training misfit.
     WithinTrainingMisfit,
+    /// Behind on training and held out by less than the winner leaves on each
+    /// ([`behind_by_less_than_own_remainder`]).
+    WithinOwnRemainder,
 }
 
 /// The systematic part of an RMS error `rms_m` over noise `noise_m`, squared.
