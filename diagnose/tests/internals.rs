@@ -327,6 +327,13 @@ mod grade {
         }
     }
 
+    /// A significant candidate with its training and held-out RMS errors (m).
+    fn fitted(effect: &str, training_m: f64, held_out_m: f64) -> CandidateResult {
+        let mut c = candidate(effect, held_out_m, &[], true);
+        c.training_rms_m = training_m;
+        c
+    }
+
     #[test]
     fn partly_explained_needs_more_than_half_in_every_band() {
         // Removes 75 % of the energy overall and in both bands.
@@ -395,12 +402,7 @@ mod grade {
     fn either_when_equal_on_training_and_apart_by_less_than_the_training_misfit() {
         // Noise 1e-7 m; the winner leaves 2e-7 m RMS on training: 3e-14 m² systematic energy.
         let noise = 1e-7;
-        let with = |effect: &str, training_m: f64, held_out_m: f64| {
-            let mut c = candidate(effect, held_out_m, &[], true);
-            c.training_rms_m = training_m;
-            c
-        };
-        let winner = with("mechanical_load", 2.0e-7, 1.5e-7);
+        let winner = fitted("mechanical_load", 2.0e-7, 1.5e-7);
         let grade_of = |rival: CandidateResult| {
             grade(
                 "mechanical_load",
@@ -411,23 +413,23 @@ mod grade {
             )
         };
         // Held out: 3e-14 against 1.25e-14 m², 1.75e-14 apart, within the training misfit.
-        let g = grade_of(with("sensor_dynamics", 2.0e-7, 2.0e-7));
+        let g = grade_of(fitted("sensor_dynamics", 2.0e-7, 2.0e-7));
         assert_eq!(g.grade, Grade::Either);
         assert_eq!(g.either, ["mechanical_load", "sensor_dynamics"]);
         assert!(g.either_reason.contains("training"), "{}", g.either_reason);
         // 4e-14 m² apart: more than the misfit, the held-out experiments separate them.
         assert_eq!(
-            grade_of(with("sensor_dynamics", 2.0e-7, 2.5e-7)).grade,
+            grade_of(fitted("sensor_dynamics", 2.0e-7, 2.5e-7)).grade,
             Grade::Effect
         );
         // Worse on training (by more than `EQUAL_ON_TRAINING`): the training separates them.
         assert_eq!(
-            grade_of(with("sensor_dynamics", 2.1e-7, 2.0e-7)).grade,
+            grade_of(fitted("sensor_dynamics", 2.1e-7, 2.0e-7)).grade,
             Grade::Effect
         );
         // A fit that leaves only noise on training leaves no room: separated.
-        let exact = with("mechanical_load", 1.0e-7, 1.5e-7);
-        let rival = with("sensor_dynamics", 1.0e-7, 2.0e-7);
+        let exact = fitted("mechanical_load", 1.0e-7, 1.5e-7);
+        let rival = fitted("sensor_dynamics", 1.0e-7, 2.0e-7);
         assert_eq!(
             grade(
                 "mechanical_load",
@@ -446,12 +448,7 @@ mod grade {
         // Noise 1e-7 m. The winner leaves 3e-14 m² of systematic energy on training and
         // 3e-14 m² held out (2e-7 m RMS on each).
         let noise = 1e-7;
-        let with = |effect: &str, training_m: f64, held_out_m: f64| {
-            let mut c = candidate(effect, held_out_m, &[], true);
-            c.training_rms_m = training_m;
-            c
-        };
-        let winner = with("sensor_dynamics", 2.0e-7, 2.0e-7);
+        let winner = fitted("sensor_dynamics", 2.0e-7, 2.0e-7);
         let grade_of = |rival: CandidateResult| {
             grade(
                 "sensor_dynamics",
@@ -464,7 +461,7 @@ mod grade {
         // Held out 5.25e-14 m² (2.25e-14 behind), training 4.76e-14 (1.76e-14 behind): both
         // within the winner's 3e-14; 1.22x its held-out RMS, outside `AMBIGUOUS_HELD_OUT`, and
         // 1.1x its training RMS, not equal on training.
-        let g = grade_of(with("mechanical_load", 2.4e-7, 2.5e-7));
+        let g = grade_of(fitted("mechanical_load", 2.4e-7, 2.5e-7));
         assert_eq!(g.grade, Grade::Either);
         assert_eq!(g.either, ["sensor_dynamics", "mechanical_load"]);
         assert!(
@@ -474,16 +471,16 @@ mod grade {
         );
         // 5e-14 m² behind held out: more than the winner leaves, separated.
         assert_eq!(
-            grade_of(with("mechanical_load", 2.4e-7, 3.0e-7)).grade,
+            grade_of(fitted("mechanical_load", 2.4e-7, 3.0e-7)).grade,
             Grade::Effect
         );
         // As close held out but 3.84e-14 m² behind on training: the training separates them.
         assert_eq!(
-            grade_of(with("mechanical_load", 2.8e-7, 2.5e-7)).grade,
+            grade_of(fitted("mechanical_load", 2.8e-7, 2.5e-7)).grade,
             Grade::Effect
         );
         // Not significant alone: never a rival.
-        let mut weak = with("mechanical_load", 2.0e-7, 2.1e-7);
+        let mut weak = fitted("mechanical_load", 2.0e-7, 2.1e-7);
         weak.significant = false;
         assert_eq!(grade_of(weak).grade, Grade::Effect);
     }
