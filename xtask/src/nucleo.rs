@@ -13,7 +13,9 @@
 //!
 //! Writes `out/nucleo/summary.txt`.
 
-use crate::qemu::{build_bin, firmware_dir, run_capture, section_sizes, PANIC_SYMBOL, TARGET};
+use crate::qemu::firmware::{
+    build_bin, firmware_dir, run_capture, section_sizes, PANIC_SYMBOL, TARGET,
+};
 use crate::util::{display, run_checked, Ctx};
 use anyhow::{bail, ensure, Context, Result};
 

@@ -10,7 +10,7 @@
 //! idle scheduling class; confined to one core during the QEMU lock-step steps) and awaited by
 //! the last step, `blind_suite` ([`test_workspace`]); a failure before then stops it.
 
-use crate::qemu::firmware_cargo;
+use crate::qemu::firmware::firmware_cargo;
 use crate::setup::{self, FIRMWARE_TARGET};
 use crate::util::{display, run_checked, secs, Ctx};
 use anyhow::{bail, Context, Result};

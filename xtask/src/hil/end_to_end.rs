@@ -3,7 +3,7 @@
 
 use super::measurement::identification_programme;
 use super::{run_once, HilRun};
-use crate::qemu::build_bin;
+use crate::qemu::firmware::build_bin;
 use crate::util::{run_checked, Ctx};
 use anyhow::{ensure, Context, Result};
 use std::fmt::Write as _;

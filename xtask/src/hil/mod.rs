@@ -39,9 +39,9 @@ pub use matrix::interrupt_matrix;
 pub use measurement::{identification_programme, Programme};
 
 use crate::frame_socket::{FrameSocket, WAKE_BOUND};
-use crate::qemu::{
-    build_bin, decode_defmt, firmware_dir, netduino_command, qemu_command, stats, TARGET,
-};
+use crate::qemu::firmware::{build_bin, decode_defmt, firmware_dir, TARGET};
+use crate::qemu::instructions::stats;
+use crate::qemu::machine::{netduino_command, qemu_command};
 use crate::util::{display, run_checked, Ctx};
 use anyhow::{bail, ensure, Context, Result};
 use bridge::{Collected, LinkActivity};
