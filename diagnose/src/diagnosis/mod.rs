@@ -129,6 +129,10 @@
 //!    richer optimum is taken up by the single candidates (a better optimum of the same
 //!    candidate, as above): a one-mode fit of a two-mode load can stop in a local minimum, and
 //!    an eddy path then mops up the rest.
+//! 9. **Grade** ([`grade`]): the verdict as graded — an effect, a pair, "X or Y" when the
+//!    experiments cannot separate two, "partly explained by X", `unexplained` or `none`.
+//! 10. **Advice** ([`advice`]): for the candidates left unseparated, the recording that would
+//!    separate them on this rig, the loops the parameter file's masses lack first.
 //!
 //! **Significance** (steps 7 and 8) is a knock-out test as well: the candidate's held-out gap
 //! must also be at most [`rules::EXPLAINED_RATIO`] of what its own fit gives with its effect switched off (so the
@@ -547,43 +551,28 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         sample_rate_hz: rec.rate_hz,
         coil_current_measured,
     };
-    let advice = {
-        let named: Vec<String> = std::iter::once(name.clone())
-            .chain(additional_effects.iter().cloned())
-            .chain(graded.partly.iter().map(|p| p.effect.clone()))
-            .collect();
-        let runners_up: Vec<&str> = ranked
-            .iter()
-            .map(|r| r.0.effect.as_str())
-            .filter(|e| !named.iter().any(|n| n == e) && *e != "nominal")
-            .take(2)
-            .collect();
-        let also_listed: Vec<String> = ambiguous_with
-            .iter()
-            .chain(&equal_on_training)
-            .cloned()
-            .chain(also_significant.iter().map(|a| a.effect.clone()))
-            .collect();
-        let mut advice: Vec<advice::Advice> = advice::measure_loops(&unmeasured_loops, rig)
-            .into_iter()
-            .collect();
-        advice.extend(advice::advise(
-            &advice::candidate_pairs(
-                &named,
-                &graded.either,
-                &runners_up,
-                &also_listed,
-                graded.grade,
-            ),
-            options
-                .commanded_experiments
-                .as_deref()
-                .unwrap_or(&rec.infos),
-            rig,
-        ));
-        advice.truncate(advice::MAX_ADVICE);
-        advice
-    };
+    let named: Vec<String> = std::iter::once(name.clone())
+        .chain(additional_effects.iter().cloned())
+        .chain(graded.partly.iter().map(|p| p.effect.clone()))
+        .collect();
+    let also_listed: Vec<String> = ambiguous_with
+        .iter()
+        .chain(&equal_on_training)
+        .cloned()
+        .chain(also_significant.iter().map(|a| a.effect.clone()))
+        .collect();
+    let advice = what_to_record(
+        &named,
+        &graded,
+        &also_listed,
+        &ranked,
+        &unmeasured_loops,
+        options
+            .commanded_experiments
+            .as_deref()
+            .unwrap_or(&rec.infos),
+        rig,
+    );
     // (A `none` the parameter file's own effects replaced above is not `none`.)
     let none_by_model_error = verdict.none_by_model_error && name == "none";
     DiagnosisRun {
@@ -633,4 +622,41 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         },
         traces,
     }
+}
+
+/// Step 10, the advice: the loops the masses lack first, then for each pair of candidates the
+/// report could not separate — the named effects (`named`, the partly explaining one included)
+/// against the `either` pair, the two best runners-up and the effects `also_listed` beside the
+/// verdict — the recording that separates them on this rig, at most [`advice::MAX_ADVICE`].
+fn what_to_record(
+    named: &[String],
+    graded: &grade::Graded,
+    also_listed: &[String],
+    ranked: &[scoring::Ranked],
+    unmeasured_loops: &[coverage::UnmeasuredLoop],
+    experiments: &[ExperimentInfo],
+    rig: advice::Rig,
+) -> Vec<advice::Advice> {
+    let runners_up: Vec<&str> = ranked
+        .iter()
+        .map(|r| r.0.effect.as_str())
+        .filter(|e| !named.iter().any(|n| n == e) && *e != "nominal")
+        .take(2)
+        .collect();
+    let mut advice: Vec<advice::Advice> = advice::measure_loops(unmeasured_loops, rig)
+        .into_iter()
+        .collect();
+    advice.extend(advice::advise(
+        &advice::candidate_pairs(
+            named,
+            &graded.either,
+            &runners_up,
+            also_listed,
+            graded.grade,
+        ),
+        experiments,
+        rig,
+    ));
+    advice.truncate(advice::MAX_ADVICE);
+    advice
 }
