@@ -132,7 +132,7 @@
 //! 9. **Grade** ([`grade`]): the verdict as graded — an effect, a pair, "X or Y" when the
 //!    experiments cannot separate two, "partly explained by X", `unexplained` or `none`.
 //! 10. **Advice** ([`advice`]): for the candidates left unseparated, the recording that would
-//!    separate them on this rig, the loops the parameter file's masses lack first.
+//!     separate them on this rig, the loops the parameter file's masses lack first.
 //!
 //! **Significance** (steps 7 and 8) is a knock-out test as well: the candidate's held-out gap
 //! must also be at most [`rules::EXPLAINED_RATIO`] of what its own fit gives with its effect switched off (so the
