@@ -132,19 +132,33 @@ pub fn parse_structure(text: &str) -> Result<magctl::params::FeedbackStructure> 
     })
 }
 
-/// Runs the matrix (cases in parallel on all cores; rows in case order).
-#[allow(clippy::too_many_arguments)]
-pub fn matrix(
-    loaded: &LoadedParams,
-    cases: &[Case],
-    feedback: &Feedback,
+/// How every case of the matrix runs: the feedback it is compared with, the inverse, the
+/// stroke-gain estimate on or off, the run's length and scored window, the noise seed.
+struct Settings {
+    feedback: Feedback,
     kind: InverseKind,
     stroke_gain: bool,
     duration_s: f64,
     settle_s: f64,
     seed: u64,
+}
+
+/// Runs the matrix (cases in parallel on all cores; rows in case order), every case's traces
+/// into `traces` when given.
+fn matrix(
+    loaded: &LoadedParams,
+    cases: &[Case],
+    settings: &Settings,
     traces: Option<&Path>,
 ) -> Result<Vec<Row>> {
+    let Settings {
+        ref feedback,
+        kind,
+        stroke_gain,
+        duration_s,
+        settle_s,
+        seed,
+    } = *settings;
     use rayon::prelude::*;
     let p = &loaded.params;
     let measure = loaded.measure();
@@ -244,15 +258,18 @@ pub fn run(args: &Args) -> Result<()> {
             .with_context(|| format!("cannot create {}", trace_dir.display()))?;
     }
     let started = std::time::Instant::now();
+    let settings = Settings {
+        feedback,
+        kind,
+        stroke_gain: !args.no_stroke_gain,
+        duration_s: args.duration_s,
+        settle_s: args.settle_s,
+        seed: args.seed,
+    };
     let rows = matrix(
         &loaded,
         &all,
-        &feedback,
-        kind,
-        !args.no_stroke_gain,
-        args.duration_s,
-        args.settle_s,
-        args.seed,
+        &settings,
         args.traces.then_some(trace_dir.as_path()),
     )?;
     let csv = args.out.join("robustness.csv");
@@ -281,12 +298,7 @@ pub fn run(args: &Args) -> Result<()> {
             noise_m: BASE_NOISE_M,
             controller_sample_delay_s: None,
         }],
-        &feedback,
-        kind,
-        !args.no_stroke_gain,
-        args.duration_s,
-        args.settle_s,
-        args.seed,
+        &settings,
         None,
     )?;
     print!("{}", table(&reference).lines().nth(1).unwrap_or_default());
