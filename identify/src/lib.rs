@@ -51,6 +51,7 @@ pub mod model;
 pub mod pipeline;
 pub mod quality;
 pub mod reach;
+pub mod table_fit;
 
 /// Number of input levels of the grid (the core's `LEVELS`).
 pub const LEVELS: usize = actuator_params::PREISACH_LEVELS;

@@ -38,7 +38,7 @@ pub enum LineChoice {
     /// Equal output change per interval (module docs).
     EqualOutput,
     /// Whichever of the two predicts held-back fit rows better (module docs, "Validation";
-    /// `crate::model::fit_table` runs it).
+    /// `crate::table_fit::fit_table` runs it).
     Auto,
 }
 

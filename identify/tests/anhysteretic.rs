@@ -10,7 +10,8 @@ use maglab_dataset::StartState;
 use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter};
 use maglab_identify::fit::{FitOptions, Reversible, Unexcited};
 use maglab_identify::lines::LineChoice;
-use maglab_identify::model::{fit_table, nrmse, predict_table, DEFAULT_RANGE_MARGIN};
+use maglab_identify::model::nrmse;
+use maglab_identify::table_fit::{fit_table, predict_table, DEFAULT_RANGE_MARGIN};
 use std::fmt::Write;
 
 const SCALE: f64 = 30.0;

@@ -11,7 +11,7 @@ use maglab_dataset::StartState;
 use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter};
 use maglab_identify::fit::{Bands, FitOptions, Reversible, Unexcited};
 use maglab_identify::lines::LineChoice;
-use maglab_identify::model::{fit_table, predict_table, DEFAULT_RANGE_MARGIN};
+use maglab_identify::table_fit::{fit_table, predict_table, DEFAULT_RANGE_MARGIN};
 use std::path::PathBuf;
 
 fn data_dir() -> PathBuf {
@@ -30,7 +30,7 @@ fn data_dir() -> PathBuf {
 
 /// `maglab preisach-fit`'s defaults: the piecewise reversible part with an offset, smoothness
 /// chosen by validation (the `true` passed to `fit_table`) among
-/// `maglab_identify::model::SMOOTHNESS_CANDIDATES`.
+/// `maglab_identify::table_fit::SMOOTHNESS_CANDIDATES`.
 const OPTIONS: FitOptions = FitOptions {
     smoothness: 1e-6,
     ridge: 0.0,

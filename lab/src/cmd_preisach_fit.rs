@@ -20,7 +20,8 @@ use maglab_identify::columns::{read_columns, ColumnSpec, RowFilter, Table};
 use maglab_identify::fit::{FitOptions, Reversible, Unexcited};
 use maglab_identify::lines::LineChoice;
 use maglab_identify::memory::PREISACH_STARTS;
-use maglab_identify::model::{fit_table, predict_table, PreisachModel, DEFAULT_RANGE_MARGIN};
+use maglab_identify::model::PreisachModel;
+use maglab_identify::table_fit::{fit_table, predict_table, DEFAULT_RANGE_MARGIN};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `maglab preisach-fit`.
@@ -214,7 +215,7 @@ fn levels_range(args: &FitArgs) -> Result<Option<(f64, f64)>> {
 /// The fit's settings, and whether the smoothness is chosen by validation (`auto`).
 fn fit_options(args: &FitArgs) -> Result<(FitOptions, bool)> {
     let (smoothness, auto_smoothness) = match args.smoothness.as_str() {
-        "auto" => (maglab_identify::model::SMOOTHNESS_CANDIDATES[1], true),
+        "auto" => (maglab_identify::table_fit::SMOOTHNESS_CANDIDATES[1], true),
         text => (
             text.parse::<f64>()
                 .map_err(|_| anyhow!("--smoothness `{text}`: expected a number >= 0 or auto"))?,
