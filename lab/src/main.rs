@@ -16,7 +16,7 @@ mod cmd_hil_plant;
 mod cmd_identify;
 mod cmd_loops;
 mod cmd_params;
-mod cmd_preisach_fit;
+mod cmd_preisach;
 mod cmd_rig;
 mod cmd_robustness;
 mod cmd_simulate;
@@ -58,9 +58,9 @@ enum Command {
     /// Identify the Preisach masses from a dataset folder and write the full parameter JSON.
     Identify(cmd_identify::Args),
     /// Fit a Preisach model to two columns of any CSV file.
-    PreisachFit(cmd_preisach_fit::FitArgs),
+    PreisachFit(cmd_preisach::FitArgs),
     /// Predict with a fitted Preisach model on a CSV file and report the NRMSE.
-    PreisachPredict(cmd_preisach_fit::PredictArgs),
+    PreisachPredict(cmd_preisach::PredictArgs),
     /// Virtual test rig: datasets from the reference plant with unmodelled effects switched on.
     Rig(cmd_rig::Args),
     /// Where a dataset disagrees with the nominal model and which unmodelled effect explains it.
@@ -98,8 +98,8 @@ fn main() -> ExitCode {
         Command::Params(args) => cmd_params::run(args),
         Command::Excite(args) => cmd_excite::run(args),
         Command::Identify(args) => cmd_identify::run(args),
-        Command::PreisachFit(args) => cmd_preisach_fit::run_fit(args),
-        Command::PreisachPredict(args) => cmd_preisach_fit::run_predict(args),
+        Command::PreisachFit(args) => cmd_preisach::run_fit(args),
+        Command::PreisachPredict(args) => cmd_preisach::run_predict(args),
         Command::Rig(args) => cmd_rig::run(args),
         Command::Diagnose(args) => cmd_diagnose::run(args),
         Command::HilPlant(args) => cmd_hil_plant::run(args),
