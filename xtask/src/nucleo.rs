@@ -13,11 +13,9 @@
 //!
 //! Writes `out/nucleo/summary.txt`.
 
-use crate::qemu::firmware::{
-    build_bin, firmware_dir, run_capture, section_sizes, PANIC_SYMBOL, TARGET,
-};
-use crate::util::{display, run_checked, Ctx};
-use anyhow::{bail, ensure, Context, Result};
+use crate::qemu::firmware::{build_bin, firmware_dir, prove_panic_free, section_sizes, TARGET};
+use crate::util::{run_checked, Ctx};
+use anyhow::{Context, Result};
 
 const BIN: &str = "firmware-nucleo";
 const BOARD: &str = "board-nucleo-f446re";
@@ -42,28 +40,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     std::fs::write(&keep, &elf).with_context(|| format!("writing {}", keep.display()))?;
     say!("firmware ELF copied to out/nucleo/firmware-nucleo.elf (probe-rs run --chip STM32F446RETx out/nucleo/firmware-nucleo.elf)");
 
-    let cmd = build_bin(ctx, BIN, &format!("{BOARD},panic-never"));
-    println!("$ {}", display(&cmd));
-    let proof = run_capture(cmd)?;
-    if !proof.0 {
-        bail!(
-            "no-panic proof FAILED for firmware-nucleo: the image still contains a reachable panic path:\n{}",
-            proof
-                .1
-                .lines()
-                .filter(|l| l.contains("undefined symbol") || l.contains(">>> referenced")
-                    || l.starts_with("error"))
-                .collect::<Vec<_>>()
-                .join("\n")
-        );
-    }
-    let cmd = build_bin(ctx, BIN, &format!("{BOARD},panic-never-canary"));
-    println!("$ {}", display(&cmd));
-    let canary = run_capture(cmd)?;
-    ensure!(
-        !canary.0 && canary.1.contains(PANIC_SYMBOL),
-        "the firmware-nucleo canary build (a panic in the TIM2 interrupt) linked: the no-panic proof would not catch a panic"
-    );
+    prove_panic_free(ctx, BIN, BOARD, Some("the TIM2 interrupt"))?;
     say!("no-panic proof (firmware-nucleo): panic-never build links; the canary (bounds check in the TIM2 interrupt) fails to link as it must");
 
     // The measurement image.
@@ -75,19 +52,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     let keep = out_dir.join("firmware-nucleo-measure.elf");
     std::fs::write(&keep, &elf).with_context(|| format!("writing {}", keep.display()))?;
     say!("firmware-nucleo measurement image sizes: flash {flash} B, static RAM {ram} B (16 KiB RTT ring, 512-tick record queue); out/nucleo/firmware-nucleo-measure.elf (cargo xtask record -o DIR -- probe-rs run --chip STM32F446RETx out/nucleo/firmware-nucleo-measure.elf)");
-    let cmd = build_bin(ctx, BIN, &format!("{measure_features},panic-never"));
-    println!("$ {}", display(&cmd));
-    let proof = run_capture(cmd)?;
-    ensure!(
-        proof.0,
-        "no-panic proof FAILED for the firmware-nucleo measurement image:\n{}",
-        proof
-            .1
-            .lines()
-            .filter(|l| l.contains("undefined symbol") || l.starts_with("error"))
-            .collect::<Vec<_>>()
-            .join("\n")
-    );
+    prove_panic_free(ctx, BIN, &measure_features, None)?;
     say!("no-panic proof (firmware-nucleo measurement image): panic-never build links");
     std::fs::write(out_dir.join("summary.txt"), &summary)?;
     Ok(summary)

@@ -2,7 +2,7 @@
 //! defmt log table, section sizes) and a build's linker output (the no-panic proof reads it).
 
 use crate::util::{display, Ctx};
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, ensure, Context, Result};
 use object::{Object, ObjectSection};
 use std::path::PathBuf;
 use std::process::Command;
@@ -10,7 +10,7 @@ use std::process::Command;
 /// The firmware's target triple (one definition: `setup` installs it, every build here uses it).
 pub use crate::setup::FIRMWARE_TARGET as TARGET;
 /// The symbol a `panic-never` build leaves undefined when a panic path is reachable.
-pub const PANIC_SYMBOL: &str = "__firmware_contains_a_reachable_panic_path";
+const PANIC_SYMBOL: &str = "__firmware_contains_a_reachable_panic_path";
 
 /// Where the firmware builds go.
 pub fn firmware_dir(ctx: &Ctx) -> PathBuf {
@@ -75,7 +75,7 @@ pub fn section_sizes(elf: &[u8]) -> Result<(u64, u64)> {
 }
 
 /// Runs a command, returning (success, stderr).
-pub fn run_capture(mut cmd: Command) -> Result<(bool, String)> {
+fn run_capture(mut cmd: Command) -> Result<(bool, String)> {
     let out = cmd
         .output()
         .with_context(|| format!("running {}", display(&cmd)))?;
@@ -83,4 +83,39 @@ pub fn run_capture(mut cmd: Command) -> Result<(bool, String)> {
         out.status.success(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     ))
+}
+
+/// The no-panic proof of firmware binary `bin` built with `features`: with `panic-never` the
+/// image must link (no panic path anywhere in it); with `canary` (where the canary feature puts
+/// a bounds check, e.g. "the ISR") the `panic-never-canary` build must fail to link naming
+/// [`PANIC_SYMBOL`], so that the proof is seen to catch a panic there.
+pub fn prove_panic_free(ctx: &Ctx, bin: &str, features: &str, canary: Option<&str>) -> Result<()> {
+    let cmd = build_bin(ctx, bin, &format!("{features},panic-never"));
+    println!("$ {}", display(&cmd));
+    let (linked, stderr) = run_capture(cmd)?;
+    if !linked {
+        bail!(
+            "no-panic proof FAILED for {bin} ({features}): the image still contains a reachable \
+             panic path:\n{}",
+            stderr
+                .lines()
+                .filter(|l| l.contains("undefined symbol")
+                    || l.contains(">>> referenced")
+                    || l.starts_with("error"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+    }
+    let Some(place) = canary else {
+        return Ok(());
+    };
+    let cmd = build_bin(ctx, bin, &format!("{features},panic-never-canary"));
+    println!("$ {}", display(&cmd));
+    let (linked, stderr) = run_capture(cmd)?;
+    ensure!(
+        !linked && stderr.contains(PANIC_SYMBOL),
+        "the {bin} canary build (a panic in {place}) linked: the no-panic proof would not catch a \
+         panic"
+    );
+    Ok(())
 }

@@ -54,11 +54,9 @@ pub mod machine;
 mod tracking;
 
 use crate::util::{display, Ctx};
-use anyhow::{bail, ensure, Context, Result};
+use anyhow::{ensure, Context, Result};
 use capture::Record;
-use firmware::{
-    build_bin, decode_defmt, firmware_dir, run_capture, section_sizes, PANIC_SYMBOL, TARGET,
-};
+use firmware::{build_bin, decode_defmt, firmware_dir, prove_panic_free, section_sizes, TARGET};
 use machine::qemu_command;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -195,29 +193,8 @@ fn check_sizes_and_fatal_paths(
 
 /// Step 8: the no-panic proof (last: it replaces the binary; the summary is written first).
 fn no_panic_proof(ctx: &Ctx, out_dir: &Path, summary: &mut String) -> Result<()> {
-    // 8. no-panic proof (last: it replaces the binary; the summary is written first)
-    let cmd = build(ctx, "board-mps2-an386,panic-never");
-    println!("$ {}", display(&cmd));
     std::fs::write(out_dir.join("summary.txt"), &*summary)?;
-    let proof = run_capture(cmd)?;
-    if !proof.0 {
-        bail!(
-            "no-panic proof FAILED: the firmware image still contains a reachable panic path:\n{}",
-            proof
-                .1
-                .lines()
-                .filter(|l| l.contains("undefined symbol") || l.contains(">>> referenced"))
-                .collect::<Vec<_>>()
-                .join("\n")
-        );
-    }
-    let cmd = build(ctx, "board-mps2-an386,panic-never-canary");
-    println!("$ {}", display(&cmd));
-    let canary = run_capture(cmd)?;
-    ensure!(
-        !canary.0 && canary.1.contains(PANIC_SYMBOL),
-        "the canary build (a panic in the ISR) linked: the no-panic proof would not catch a panic"
-    );
+    prove_panic_free(ctx, "firmware-qemu", "board-mps2-an386", Some("the ISR"))?;
     say!(summary, "no-panic proof: panic-never build links; the canary (bounds check in the ISR) fails to link as it must");
     stack_guard(ctx, summary)
 }
