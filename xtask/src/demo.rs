@@ -1,6 +1,6 @@
 //! `cargo xtask demo`: the project's main job, end to end on this machine.
 //!
-//! Runs `setup`, then `maglab loops` (dev profile, [`maglab`]) with the baked parameters, which prints the
+//! Runs `setup`, then `maglab loops` ([`maglab`]) with the baked parameters, which prints the
 //! loop table and writes `out/loops.png|svg` and `out/displacement.png|svg`. Extra arguments are
 //! passed to `maglab loops` (e.g. `cargo xtask demo --params my.json`). Then the QEMU firmware
 //! run (`cargo xtask qemu`: `out/qemu/`) and the paper's Figures 7/8 from its captured current
@@ -43,13 +43,15 @@ pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
     setup::ensure(ctx)?;
 
     println!("\n==> Preisach loops of the baked operator (maglab loops)");
-    let mut cmd = maglab(ctx, &["loops", "--out", OUT_DIR]);
+    let exe = crate::hil::maglab(ctx)?;
+    let mut cmd = maglab(ctx, &exe, &["loops", "--out", OUT_DIR]);
     cmd.args(args);
     run_checked(cmd)?;
 
     println!("\n==> The rate-dependent model at 1-400 Hz (maglab simulate)");
     run_checked(maglab(
         ctx,
+        &exe,
         &[
             "simulate",
             "--freq",
@@ -66,6 +68,7 @@ pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
     println!("\n==> Figures 7/8 from the QEMU run's current commands (maglab track --capture)");
     let cmd = maglab(
         ctx,
+        &exe,
         &[
             "track",
             "--capture",
@@ -97,13 +100,13 @@ pub fn run(ctx: &Ctx, args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// `cargo run --quiet -p maglab -- <args>` in the repository root, in the dev profile: the crates
-/// that compute (core, model, plant, identification, diagnosis) are optimized there
-/// (`[profile.dev.package.*]` in Cargo.toml), the rest is not. The demo's three commands then take
-/// about 2 s instead of 0.4 s optimized throughout, and the build of a fresh clone about 100 s
-/// instead of 125 s (after `cargo xtask test`, 60 s instead of 125 s).
-fn maglab(ctx: &Ctx, args: &[&str]) -> std::process::Command {
-    let mut cmd = ctx.cargo(&["run", "--quiet", "-p", "maglab", "--"]);
-    cmd.args(args);
+/// `maglab <args>` in the repository root, `exe` built as `cargo xtask hil` builds it
+/// ([`crate::hil::maglab`]: as `cargo test --workspace` does, its computing crates optimized).
+/// After `cargo xtask test` that build is there already; on a fresh clone the demo builds the
+/// workspace's tests with it (about 2.5 min against 1.7 min for the tool alone), which
+/// `cargo xtask test` then reuses. The demo's three commands take about 2 s.
+fn maglab(ctx: &Ctx, exe: &std::path::Path, args: &[&str]) -> std::process::Command {
+    let mut cmd = std::process::Command::new(exe);
+    cmd.args(args).current_dir(&ctx.root);
     cmd
 }
