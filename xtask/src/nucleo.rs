@@ -13,7 +13,7 @@
 //!
 //! Writes `out/nucleo/summary.txt`.
 
-use crate::qemu::firmware::{build_bin, firmware_dir, prove_panic_free, section_sizes, TARGET};
+use crate::qemu::firmware::{build_bin, elf_path, prove_panic_free, section_sizes};
 use crate::util::{run_checked, Ctx};
 use anyhow::{Context, Result};
 
@@ -30,7 +30,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     }
 
     run_checked(build_bin(ctx, BIN, BOARD))?;
-    let elf_path = firmware_dir(ctx).join(TARGET).join("release").join(BIN);
+    let elf_path = elf_path(ctx, BIN);
     let elf =
         std::fs::read(&elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
     let (flash, ram) = section_sizes(&elf)?;

@@ -39,7 +39,7 @@ pub use matrix::interrupt_matrix;
 pub use measurement::{identification_programme, Programme};
 
 use crate::frame_socket::{FrameSocket, WAKE_BOUND};
-use crate::qemu::firmware::{build_bin, decode_defmt, firmware_dir, TARGET};
+use crate::qemu::firmware::{build_bin, decode_defmt, elf_path};
 use crate::qemu::instructions::stats;
 use crate::qemu::machine::{netduino_command, qemu_command};
 use crate::util::{display, run_checked, Ctx};
@@ -223,10 +223,7 @@ const NUCLEO_EMULATOR_FEATURES: &str = "emulator-netduinoplus2,panic-never";
 /// Builds the NUCLEO image's emulator build and returns its ELF.
 pub fn nucleo_emulator_firmware(ctx: &Ctx) -> Result<PathBuf> {
     run_checked(build_bin(ctx, "firmware-nucleo", NUCLEO_EMULATOR_FEATURES))?;
-    Ok(firmware_dir(ctx)
-        .join(TARGET)
-        .join("release")
-        .join("firmware-nucleo"))
+    Ok(elf_path(ctx, "firmware-nucleo"))
 }
 
 /// Builds the HIL firmware and returns its ELF.
@@ -236,10 +233,7 @@ pub fn firmware(ctx: &Ctx) -> Result<PathBuf> {
         "firmware-hil",
         "board-mps2-an386,panic-never",
     ))?;
-    Ok(firmware_dir(ctx)
-        .join(TARGET)
-        .join("release")
-        .join("firmware-hil"))
+    Ok(elf_path(ctx, "firmware-hil"))
 }
 
 /// The plant program's command line: `--plant-cmd` through `sh -c`, or `maglab hil-plant`

@@ -49,6 +49,11 @@ pub fn build_bin(ctx: &Ctx, bin: &str, features: &str) -> Command {
     )
 }
 
+/// The ELF [`build_bin`] writes for firmware binary `bin`.
+pub fn elf_path(ctx: &Ctx, bin: &str) -> PathBuf {
+    firmware_dir(ctx).join(TARGET).join("release").join(bin)
+}
+
 /// The defmt frames of `stream` decoded with the table in `elf`, one line each.
 pub fn decode_defmt(elf: &[u8], stream: &[u8]) -> Result<Vec<String>> {
     let table = defmt_decoder::Table::parse(elf)?.context("the firmware ELF has no defmt table")?;

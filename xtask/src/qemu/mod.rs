@@ -56,7 +56,7 @@ mod tracking;
 use crate::util::{display, Ctx};
 use anyhow::{ensure, Context, Result};
 use capture::Record;
-use firmware::{build_bin, decode_defmt, firmware_dir, prove_panic_free, section_sizes, TARGET};
+use firmware::{build_bin, decode_defmt, elf_path, prove_panic_free, section_sizes};
 use machine::qemu_command;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -108,10 +108,7 @@ fn run_benchmark(ctx: &Ctx, out_dir: &Path, summary: &mut String) -> Result<Benc
     let cmd = build(ctx, "board-mps2-an386");
     println!("$ {}", display(&cmd));
     crate::util::run_checked(cmd)?;
-    let elf_path = firmware_dir(ctx)
-        .join(TARGET)
-        .join("release")
-        .join("firmware-qemu");
+    let elf_path = elf_path(ctx, "firmware-qemu");
     let elf =
         std::fs::read(&elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
 
@@ -211,10 +208,7 @@ fn stack_guard(ctx: &Ctx, summary: &mut String) -> Result<()> {
     );
     println!("$ {}", display(&cmd));
     crate::util::run_checked(cmd)?;
-    let elf = firmware_dir(ctx)
-        .join(TARGET)
-        .join("release")
-        .join("firmware-hil");
+    let elf = elf_path(ctx, "firmware-hil");
     let mut qemu = qemu_command(
         "60",
         "null",
