@@ -11,6 +11,7 @@
 pub mod actuator;
 pub mod bench;
 pub mod effects;
+mod forms;
 pub mod preisach;
 pub mod rods;
 pub mod suite;
