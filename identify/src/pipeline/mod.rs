@@ -147,7 +147,12 @@ fn on_measured_current(
         .map(|d| {
             let mut d = d.clone();
             if let Some(c) = &d.measurement.coil_current_a {
-                d.measurement.current_a = coil_current::interval_means_preserved(c);
+                d.measurement.current_a = coil_current::coil_current_input(
+                    &d.measurement.current_a,
+                    c,
+                    d.measurement.step_s,
+                    &judgement,
+                );
             }
             d
         })
