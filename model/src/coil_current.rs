@@ -344,18 +344,18 @@ pub fn coil_current_input(
     step_s: f64,
     judgement: &AmplifierJudgement,
 ) -> Vec<f64> {
-    let delivered = delivered_current(command_a, step_s, judgement);
+    let mut current = delivered_current(command_a, step_s, judgement);
     let departure: Vec<f64> = measured_a
         .iter()
-        .zip(&delivered)
+        .zip(&current)
         .map(|(m, d)| m - d)
         .collect();
-    let departure = without_white_noise(&departure, judgement.noise_a);
-    let current: Vec<f64> = delivered
-        .iter()
-        .zip(&departure)
-        .map(|(d, e)| d + e)
-        .collect();
+    for (c, e) in current
+        .iter_mut()
+        .zip(without_white_noise(&departure, judgement.noise_a))
+    {
+        *c += e;
+    }
     interval_means_preserved(&current)
 }
 

@@ -2,9 +2,7 @@
 //! measured current (`maglab_model::coil_current`), the rod on the measured current against the
 //! displacement ([`super::diagnose`]), and the two put together here.
 
-pub use maglab_model::coil_current::{
-    interval_means_preserved, judge, with_measured_current, AmplifierJudgement,
-};
+pub use maglab_model::coil_current::{judge, with_measured_current, AmplifierJudgement};
 
 use super::grade::Grade;
 use super::Diagnosis;

@@ -49,8 +49,9 @@ pub struct RecordedDataset {
     /// The amplifier judged on the commanded against the measured current, when the dataset
     /// records it (`None`: the commanded current is the model's input).
     pub amplifier: Option<AmplifierJudgement>,
-    /// With the coil current recorded, the dynamic experiments with the measured current as
-    /// their `current_a` (`maglab_model::coil_current::with_measured_current`): the dynamic
+    /// With the coil current recorded, the dynamic experiments with the measured current, its
+    /// monitor noise taken out, as their `current_a`
+    /// (`maglab_model::coil_current::coil_current_input`): the dynamic
     /// model's input, so that the rod is identified from the current in its coil, whatever the
     /// amplifier made of the command.
     dynamic_on_measured_current: Option<Vec<DynamicExperiment>>,
@@ -102,9 +103,10 @@ impl RecordedDataset {
 }
 
 /// With the coil current recorded in every file: the amplifier judged on the command against
-/// it, the dynamic experiments with the measured current as their current, and the quasi-static
-/// ones with the command as the coil carried it (`maglab_model::coil_current::with_measured_current`
-/// says why not the measured current). A dataset with the column in some files only is an error naming the first file that
+/// it, the dynamic experiments with the measured current as their current (its monitor noise
+/// taken out: `maglab_model::coil_current::coil_current_input`), and the quasi-static ones with
+/// the command as the coil carried it (`maglab_model::coil_current::with_measured_current` says
+/// why not the measured current). A dataset with the column in some files only is an error naming the first file that
 /// differs.
 #[allow(clippy::type_complexity)]
 fn on_measured_current(
