@@ -397,12 +397,17 @@ fn print_passes(kept: &maglab_identify::pipeline::ChosenPass) {
     }
     let c = kept.passes[kept.pass - 1].fitted;
     println!(
-        "R_eddy, ξ, f0: {:.2} Ω, {:.4}, {:.1} Hz from pass {} of {} (the lowest RMS NRMSE)",
+        "R_eddy, ξ, f0: {:.2} Ω, {:.4}, {:.1} Hz from pass {} of {} ({})",
         c[0],
         c[1],
         c[2],
         kept.pass,
-        kept.passes.len()
+        kept.passes.len(),
+        if kept.settled {
+            "the alternation settled there"
+        } else {
+            "the lowest RMS NRMSE"
+        }
     );
 }
 

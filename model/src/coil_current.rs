@@ -298,10 +298,8 @@ pub fn judge(measurements: &[Measurement]) -> Option<AmplifierJudgement> {
 /// not flagged in `quasi_static`), each taken as [`coil_current_input`] makes it: the records the
 /// rod is judged on (`None` without the channel).
 ///
-/// Quasi-static records take the command as the coil carried it ([`delivered_current`]), not
-/// the monitor's reading: the monitor's noise would enter the Preisach memory as a minor loop at
-/// every wiggle (eq. (2): each reversal of `H = c0 I` is one) and flip the sign rule of `M` near
-/// zero current.
+/// Quasi-static records take [`coil_current_at_samples`]: the static model reads the current at
+/// the sample instants, where a dynamic record's model needs its interval means.
 pub fn with_measured_current(
     measurements: &[Measurement],
     quasi_static: &[bool],
@@ -313,7 +311,7 @@ pub fn with_measured_current(
         .map(|(m, &slow)| {
             m.coil_current_a.as_ref().map(|c| Measurement {
                 current_a: if slow {
-                    delivered_current(&m.current_a, m.step_s, judgement)
+                    coil_current_at_samples(&m.current_a, c, m.step_s, judgement)
                 } else {
                     coil_current_input(&m.current_a, c, m.step_s, judgement)
                 },
@@ -344,6 +342,29 @@ pub fn coil_current_input(
     step_s: f64,
     judgement: &AmplifierJudgement,
 ) -> Vec<f64> {
+    interval_means_preserved(&coil_current_at_samples(
+        command_a, measured_a, step_s, judgement,
+    ))
+}
+
+/// The coil current at the sample instants: the command as the fitted amplifier delivers it
+/// ([`delivered_current`]) plus the measured current's departure from that with the monitor's
+/// white noise taken out (`maglab_signal::denoise`). What the masses are fitted on, and the
+/// input of [`coil_current_input`].
+///
+/// The monitor's reading as it is would put its noise into the Preisach memory as a minor loop
+/// at every wiggle (eq. (2): each reversal of `H = c0 I` is one) and flip the sign rule of `M`
+/// near zero current. The command through the fitted lag alone is right only for an amplifier
+/// that is that lag: a current loop that yields to the rod's back-EMF departs from it on a slow
+/// sweep as well, and masses fitted on the lag's current absorb that departure as a shift of
+/// the loops, which the dynamic fit then pays for in `R_eddy`, `ξ`, `f0` (docs/identification.md,
+/// the amplifier forms).
+pub fn coil_current_at_samples(
+    command_a: &[f64],
+    measured_a: &[f64],
+    step_s: f64,
+    judgement: &AmplifierJudgement,
+) -> Vec<f64> {
     let mut current = delivered_current(command_a, step_s, judgement);
     let departure: Vec<f64> = measured_a
         .iter()
@@ -356,7 +377,7 @@ pub fn coil_current_input(
     {
         *c += e;
     }
-    interval_means_preserved(&current)
+    current
 }
 
 /// The `command` as the coil carried it at the displacement's sample instants, by the

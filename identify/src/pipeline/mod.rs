@@ -55,16 +55,17 @@ pub struct RecordedDataset {
     /// model's input, so that the rod is identified from the current in its coil, whatever the
     /// amplifier made of the command.
     dynamic_on_measured_current: Option<Vec<DynamicExperiment>>,
-    /// With the coil current recorded, the quasi-static experiments as the coil carried their
-    /// command (`maglab_model::coil_current::delivered_current`): what the masses are fitted on.
-    quasi_static_on_delivered_current: Option<Vec<Measurement>>,
+    /// With the coil current recorded, the quasi-static experiments with the coil current at
+    /// their sample instants (`maglab_model::coil_current::coil_current_at_samples`): what the
+    /// masses are fitted on.
+    quasi_static_on_coil_current: Option<Vec<Measurement>>,
 }
 
 impl RecordedDataset {
     /// Reads the folder `dir` (errors name the file, line, column or field).
     pub fn load(dir: &Path, classify: &ClassifyOptions) -> Result<Self, DataError> {
         let split = load_split_dataset(dir, classify)?;
-        let (amplifier, dynamic_on_measured_current, quasi_static_on_delivered_current) =
+        let (amplifier, dynamic_on_measured_current, quasi_static_on_coil_current) =
             match on_measured_current(&split)? {
                 Some((a, d, q)) => (Some(a), Some(d), Some(q)),
                 None => (None, None, None),
@@ -74,15 +75,15 @@ impl RecordedDataset {
             split,
             amplifier,
             dynamic_on_measured_current,
-            quasi_static_on_delivered_current,
+            quasi_static_on_coil_current,
         })
     }
 
     /// The quasi-static experiments as the masses are fitted on them: with the coil current
-    /// recorded, each command as the coil carried it; else as recorded.
+    /// recorded, the coil current at their sample instants; else as recorded.
     pub fn quasi_static_input(&self) -> maglab_dataset::data::Dataset {
         let mut dataset = self.split.quasi_static_dataset();
-        if let Some(q) = &self.quasi_static_on_delivered_current {
+        if let Some(q) = &self.quasi_static_on_coil_current {
             dataset.measurements = q.clone();
         }
         dataset
@@ -105,9 +106,8 @@ impl RecordedDataset {
 /// With the coil current recorded in every file: the amplifier judged on the command against
 /// it, the dynamic experiments with the measured current as their current (its monitor noise
 /// taken out: `maglab_model::coil_current::coil_current_input`), and the quasi-static ones with
-/// the command as the coil carried it (`maglab_model::coil_current::with_measured_current` says
-/// why not the measured current). A dataset with the column in some files only is an error naming the first file that
-/// differs.
+/// it at their sample instants (`maglab_model::coil_current::coil_current_at_samples`). A
+/// dataset with the column in some files only is an error naming the first file that differs.
 #[allow(clippy::type_complexity)]
 fn on_measured_current(
     split: &SplitDataset,
@@ -159,13 +159,18 @@ fn on_measured_current(
             d
         })
         .collect();
-    // The quasi-static records as the coil carried their command (the masses are fitted on
-    // them): timed like the measured current the dynamic records now carry.
+    // The quasi-static records with the coil current at their sample instants (the masses are
+    // fitted on them): the current the dynamic records carry, without its interval means.
     let quasi_static = split
         .quasi_static
         .iter()
         .map(|m| Measurement {
-            current_a: coil_current::delivered_current(&m.current_a, m.step_s, &judgement),
+            current_a: match &m.coil_current_a {
+                Some(c) => {
+                    coil_current::coil_current_at_samples(&m.current_a, c, m.step_s, &judgement)
+                }
+                None => m.current_a.clone(),
+            },
             ..m.clone()
         })
         .collect();
