@@ -294,12 +294,11 @@ pub fn judge(measurements: &[Measurement]) -> Option<AmplifierJudgement> {
     })
 }
 
-/// `measurements` with the measured coil current as the current of every dynamic record (those
-/// not flagged in `quasi_static`), each taken as [`coil_current_input`] makes it: the records the
-/// rod is judged on (`None` without the channel).
-///
-/// Quasi-static records take [`coil_current_at_samples`]: the static model reads the current at
-/// the sample instants, where a dynamic record's model needs its interval means.
+/// `measurements` with the measured coil current as the current of every record: the records the
+/// rod is judged on (`None` without the channel). A dynamic record takes it as
+/// [`coil_current_input`] makes it, a quasi-static one (flagged in `quasi_static`) as
+/// [`coil_current_at_samples`] does: the static model reads the current at the sample instants,
+/// where a dynamic record's model needs its interval means.
 pub fn with_measured_current(
     measurements: &[Measurement],
     quasi_static: &[bool],
