@@ -307,17 +307,25 @@ pub fn with_measured_current(
     measurements
         .iter()
         .zip(quasi_static)
-        .map(|(m, &slow)| {
-            m.coil_current_a.as_ref().map(|c| Measurement {
-                current_a: if slow {
-                    coil_current_at_samples(&m.current_a, c, m.step_s, judgement)
-                } else {
-                    coil_current_input(&m.current_a, c, m.step_s, judgement)
-                },
-                ..m.clone()
-            })
-        })
+        .map(|(m, &slow)| on_measured_current(m, slow, judgement))
         .collect()
+}
+
+/// One record of [`with_measured_current`]: `m` with its measured coil current as its current
+/// (`None` when it has no `coil_current_a`).
+pub fn on_measured_current(
+    m: &Measurement,
+    quasi_static: bool,
+    judgement: &AmplifierJudgement,
+) -> Option<Measurement> {
+    m.coil_current_a.as_ref().map(|c| Measurement {
+        current_a: if quasi_static {
+            coil_current_at_samples(&m.current_a, c, m.step_s, judgement)
+        } else {
+            coil_current_input(&m.current_a, c, m.step_s, judgement)
+        },
+        ..m.clone()
+    })
 }
 
 /// The coil current of a dynamic record as the model takes it: the command as the fitted

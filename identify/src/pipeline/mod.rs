@@ -143,37 +143,21 @@ fn on_measured_current(
     let Some(judgement) = coil_current::judge(&owned) else {
         return Ok(None);
     };
+    // Each record as `maglab_model::coil_current::with_measured_current` takes it: a dynamic one
+    // with its interval means kept, a quasi-static one (the masses are fitted on them) at its
+    // sample instants.
+    let taken = |m: &Measurement, slow: bool| {
+        coil_current::on_measured_current(m, slow, &judgement).unwrap_or_else(|| m.clone())
+    };
     let dynamic = split
         .dynamic
         .iter()
-        .map(|d| {
-            let mut d = d.clone();
-            if let Some(c) = &d.measurement.coil_current_a {
-                d.measurement.current_a = coil_current::coil_current_input(
-                    &d.measurement.current_a,
-                    c,
-                    d.measurement.step_s,
-                    &judgement,
-                );
-            }
-            d
+        .map(|d| DynamicExperiment {
+            measurement: taken(&d.measurement, false),
+            ..d.clone()
         })
         .collect();
-    // The quasi-static records with the coil current at their sample instants (the masses are
-    // fitted on them): the current the dynamic records carry, without its interval means.
-    let quasi_static = split
-        .quasi_static
-        .iter()
-        .map(|m| Measurement {
-            current_a: match &m.coil_current_a {
-                Some(c) => {
-                    coil_current::coil_current_at_samples(&m.current_a, c, m.step_s, &judgement)
-                }
-                None => m.current_a.clone(),
-            },
-            ..m.clone()
-        })
-        .collect();
+    let quasi_static = split.quasi_static.iter().map(|m| taken(m, true)).collect();
     Ok(Some((judgement, dynamic, quasi_static)))
 }
 
