@@ -18,7 +18,7 @@
 //! | `amplifier_bandwidth` | `natural_hz`, `damping_ratio` | second-order low-pass on the current |
 //! | `sensor_dynamics` | `natural_hz`, `damping_ratio`, `delay_s` | second-order low-pass and a delay on the reading |
 //! | `reversible_magnetization` | `susceptibility`, `saturation_field_a_per_m`, `shape` | `χ_r H / (1 + |H/H_s|^p)^(1/p)` |
-//! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `1 − g φ`, strain `e φ`; `τ` at least two periods of the slowest dynamic excitation ([`thermal_time_constant_min_s`]) |
+//! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `max(0, 1 − g φ)` (the fraction of λ_s the warm rod keeps), strain `e φ`; `τ` at least two periods of the slowest dynamic excitation ([`thermal_time_constant_min_s`]) |
 //! | `delta_e_effect` | `stiffness_m2`, `stiffness_m4`, `stiffness_m6`, `stiffness_stress` | `ω² = ω0² (1 + d₁ m² + d₂ m⁴ + d₃ m⁶ + d_σ ε)`, `m = M/M_s`, `ε = (y − u)/stroke` the elastic strain (stress) |
 //! | `mechanical_load` | `mass_ratio`, `coupling_hz`, `damping_ratio` | one load mode (a mass coupled to the rod by a spring and a damper; the sensor reads it); its richer form ([`RICHER_FORM`], second stage only) hangs a second mass on it, `mass_ratio` (to the first load mass), `coupling_hz` and `damping_ratio` of its own |
 //!

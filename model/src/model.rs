@@ -21,10 +21,11 @@
 //!    `2 M(2S) − M(S)` at the `S` substep ends: backward Euler's error is first order in the
 //!    step, so the combination is second order (measured against the bench plant without
 //!    effects: see `tests/`).
-//! 2. **Mechanical stage** ([`run_mech`]; parameters [`Mech`]): `u = (1 − g θ) (l_m λ_s/M_s²) M²
-//!    + e θ` (`thermal_drift`: the coil `τ θ' = I² − θ` heating the rod `τ_l φ' = θ − φ`, a gain
-//!    loss and an expansion with `φ`, both starting from the previous experiment's end for a
-//!    chained start), the rod eq. (5)
+//! 2. **Mechanical stage** ([`run_mech`]; parameters [`Mech`]): `u = max(0, 1 − g φ)
+//!    (l_m λ_s/M_s²) M² + e φ` (`thermal_drift`: the coil `τ θ' = I² − θ` heating the rod
+//!    `τ_l φ' = θ − φ`, a gain loss and an expansion with `φ`, both starting from the previous
+//!    experiment's end for a chained start; the gain is the fraction of λ_s the warm rod keeps,
+//!    which a rod heated past its loss of λ_s cannot take below zero), the rod eq. (5)
 //!    (`delta_e_effect`: `ω² = ω0² (1 + d₁ m² + d₂ m⁴ + d₃ m⁶ + d_σ ε)`, ε = (y − u)/stroke the elastic
 //!    strain, a first-order stress dependence; `mechanical_load`: a second mass on a
 //!    spring, the sensor on it) by RK4 with `u` linear over each substep (without ΔE the step
@@ -722,7 +723,8 @@ fn mech_states<const N: usize>(
         )
     });
     let u_of = |m: f64, phi: f64| match thermal {
-        Some((_, _, g, e)) => (1.0 - g * phi) * k_u * m * m + e * phi,
+        // The gain is the fraction of λ_s the warm rod keeps: it cannot fall below zero.
+        Some((_, _, g, e)) => (1.0 - g * phi).max(0.0) * k_u * m * m + e * phi,
         None => k_u * m * m,
     };
     let inv_stroke = 1.0 / nominal.stroke_m.max(1e-12);

@@ -380,6 +380,48 @@ mod model {
     }
 
     #[test]
+    fn a_heated_rod_keeps_a_fraction_of_its_strain_never_a_negative_one() {
+        // Thermal drift's gain `1 − g φ` is the fraction of λ_s the warm rod keeps: at a steady
+        // `φ = I²` with `g φ = 0.5` the rod settles at half its cold displacement; with
+        // `g φ = 2` it has none left, and the strain must settle at zero, not at minus the cold
+        // one (the expansion `e` set to zero so that only the gain acts).
+        let (nominal, measure) = paper_model();
+        let step_s = 1e-4;
+        let current_a = 0.5;
+        let currents = vec![current_a; 3000];
+        let run = run_electro(
+            &nominal,
+            &measure,
+            &Electro::nominal(nominal.eddy_resistance_ohm),
+            &currents,
+            step_s,
+            CurrentBetweenSamples::Linear,
+            &ModelStart::State(StartState::SwitchOnDemagnetized),
+            None,
+            1,
+        );
+        let settled = |thermal: Option<(f64, f64, f64, f64)>| {
+            let mut mech = Mech::nominal(0.6, nominal.resonance_hz);
+            mech.thermal = thermal;
+            let y = run_mech(&nominal, &mech, &run, currents.len(), step_s, (0.0, 0.0));
+            *y.last().expect("samples")
+        };
+        let cold = settled(None);
+        assert!(cold > 1e-6, "the rod strains at {current_a} A: {cold:e}");
+        let i2 = current_a * current_a;
+        let half = settled(Some((0.005, 0.005, 0.5 / i2, 0.0)));
+        assert!(
+            (half / cold - 0.5).abs() < 1e-6,
+            "half the gain left: {half:e} of {cold:e}"
+        );
+        let none_left = settled(Some((0.005, 0.005, 2.0 / i2, 0.0)));
+        assert!(
+            none_left.abs() < 1e-6 * cold,
+            "no gain left: {none_left:e} (cold {cold:e})"
+        );
+    }
+
+    #[test]
     fn a_second_load_mass_gives_the_chains_frequency_response() {
         // Rod, first and second load mass in a chain, the sensor on the first: driven by a
         // sinusoidal u = k_u M², the steady-state motion of the first load mass must match
