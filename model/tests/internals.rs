@@ -290,6 +290,28 @@ mod model {
         (Nominal::from_params(&params), core.preisach.measure())
     }
 
+    /// The electric stage without effects on `currents` (linear between samples), from the
+    /// switched-on demagnetized state.
+    fn nominal_electro(
+        nominal: &Nominal,
+        measure: &PreisachMeasure,
+        currents: &[f64],
+        step_s: f64,
+        substeps: usize,
+    ) -> ElectroRun {
+        run_electro(
+            nominal,
+            measure,
+            &Electro::nominal(nominal.eddy_resistance_ohm),
+            currents,
+            step_s,
+            CurrentBetweenSamples::Linear,
+            &ModelStart::State(StartState::SwitchOnDemagnetized),
+            None,
+            substeps,
+        )
+    }
+
     /// The `exp`/`ln` form of the reversible term against the textbook `powf` form, over the
     /// candidate's ranges of shape and saturation field and fields from 0 to 10 H_s.
     #[test]
@@ -346,17 +368,7 @@ mod model {
         let currents: Vec<f64> = (0..2000)
             .map(|k| 0.3 + 0.25 * (2.0 * PI * 150.0 * k as f64 * step_s).sin())
             .collect();
-        let run = run_electro(
-            &nominal,
-            &measure,
-            &Electro::nominal(nominal.eddy_resistance_ohm),
-            &currents,
-            step_s,
-            CurrentBetweenSamples::Linear,
-            &ModelStart::State(StartState::SwitchOnDemagnetized),
-            None,
-            2,
-        );
+        let run = nominal_electro(&nominal, &measure, &currents, step_s, 2);
         for (load, second_load, thermal) in [
             (None, None, None),
             (Some((0.4, 900.0, 0.2)), None, None),
@@ -389,17 +401,7 @@ mod model {
         let step_s = 1e-4;
         let current_a = 0.5;
         let currents = vec![current_a; 3000];
-        let run = run_electro(
-            &nominal,
-            &measure,
-            &Electro::nominal(nominal.eddy_resistance_ohm),
-            &currents,
-            step_s,
-            CurrentBetweenSamples::Linear,
-            &ModelStart::State(StartState::SwitchOnDemagnetized),
-            None,
-            1,
-        );
+        let run = nominal_electro(&nominal, &measure, &currents, step_s, 1);
         let settled = |thermal: Option<(f64, f64, f64, f64)>| {
             let mut mech = Mech::nominal(0.6, nominal.resonance_hz);
             mech.thermal = thermal;
@@ -430,17 +432,7 @@ mod model {
         use nalgebra::{Complex, Matrix3, Vector3};
         let (nominal, measure) = paper_model();
         let (step_s, substeps, n) = (1e-4, 10usize, 3000usize);
-        let template = run_electro(
-            &nominal,
-            &measure,
-            &Electro::nominal(nominal.eddy_resistance_ohm),
-            &[0.3; 4],
-            step_s,
-            CurrentBetweenSamples::Linear,
-            &ModelStart::State(StartState::SwitchOnDemagnetized),
-            None,
-            1,
-        );
+        let template = nominal_electro(&nominal, &measure, &[0.3; 4], step_s, 1);
         let (xi, f0) = (0.3, nominal.resonance_hz);
         let (r2, f2, z2) = (0.4, 900.0, 0.1);
         let (r3, f3, z3) = (0.5, 2200.0, 0.08);
