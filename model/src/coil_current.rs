@@ -328,21 +328,9 @@ pub fn on_measured_current(
     })
 }
 
-/// The coil current of a dynamic record as the model takes it: the command as the fitted
-/// amplifier delivers it ([`delivered_current`]) plus the measured current's departure from
-/// that with the monitor's white noise taken out (`maglab_signal::denoise`: its cosine
-/// coefficients above the universal threshold at the judgement's noise level), read as
-/// [`interval_means_preserved`] makes it.
-///
-/// The measured current carries the monitor's noise into the model: the eddy equation (4)
-/// passes the current's sample-to-sample wiggle into `H`, and each wiggle that reverses `H` is
-/// a minor loop of the Preisach memory (eq. (2)). On the bench plant (`maglab rig --forc-hz 1
-/// --seed 3`, default sines) a monitor with 1 mA of white noise took the identified f0 0.6 %
-/// low, 2 mA took R_eddy, ξ, f0 3.0 %, 2.0 %, 1.4 % low; with the noise taken out all three are
-/// within 0.4 %, as from a noise-free monitor. What an amplifier does beyond the fitted lag
-/// stays in the departure where it stands above the noise: on the bench plant's three amplifier
-/// forms the identified constants moved by at most 0.2 points against the measured current
-/// taken as it is (docs/identification.md).
+/// The coil current of a dynamic record as the model takes it: [`coil_current_at_samples`],
+/// read as [`interval_means_preserved`] makes it (the dynamic model needs the current's interval
+/// means, the samples hold its values at the instants).
 pub fn coil_current_input(
     command_a: &[f64],
     measured_a: &[f64],
@@ -356,12 +344,18 @@ pub fn coil_current_input(
 
 /// The coil current at the sample instants: the command as the fitted amplifier delivers it
 /// ([`delivered_current`]) plus the measured current's departure from that with the monitor's
-/// white noise taken out (`maglab_signal::denoise`). What the masses are fitted on, and the
-/// input of [`coil_current_input`].
+/// white noise taken out (`maglab_signal::denoise`: its cosine coefficients above the universal
+/// threshold at the judgement's noise level). What the masses are fitted on, and the input of
+/// [`coil_current_input`].
 ///
-/// The monitor's reading as it is would put its noise into the Preisach memory as a minor loop
-/// at every wiggle (eq. (2): each reversal of `H = c0 I` is one) and flip the sign rule of `M`
-/// near zero current. The command through the fitted lag alone is right only for an amplifier
+/// The monitor's reading as it is would carry its noise into the model: the eddy equation (4)
+/// passes the current's sample-to-sample wiggle into `H`, and each wiggle that reverses `H` is a
+/// minor loop of the Preisach memory (eq. (2)), which near zero current also flips the sign
+/// rule of `M`. On the bench plant (`maglab rig --forc-hz 1 --seed 3`, default sines) a monitor
+/// with 1 mA of white noise took the identified f0 0.6 % low, 2 mA took R_eddy, ξ, f0 3.0 %,
+/// 2.0 %, 1.4 % low; with the noise taken out all three are within 0.4 %, as from a noise-free
+/// monitor. What an amplifier does beyond the fitted lag stays in the departure where it stands
+/// above the noise. The command through the fitted lag alone is right only for an amplifier
 /// that is that lag: a current loop that yields to the rod's back-EMF departs from it on a slow
 /// sweep as well, and masses fitted on the lag's current absorb that departure as a shift of
 /// the loops, which the dynamic fit then pays for in `R_eddy`, `ξ`, `f0` (docs/identification.md,
