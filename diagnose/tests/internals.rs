@@ -486,6 +486,51 @@ mod grade {
     }
 
     #[test]
+    fn the_part_an_eddy_path_explains_is_as_much_a_current_loops() {
+        // Removes 75 % of the gap's energy in every band: partly explained.
+        let eddy = candidate(
+            "eddy_frequency_dependence",
+            0.5e-6,
+            &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)],
+            false,
+        );
+        let g = grade(
+            "unexplained",
+            &[],
+            std::slice::from_ref(&eddy),
+            (0.0, 1e-4),
+            false,
+        );
+        assert_eq!(g.grade, Grade::PartlyExplained);
+        assert_eq!(g.partly.unwrap().effect, "eddy_frequency_dependence");
+        assert_eq!(
+            g.either,
+            ["eddy_frequency_dependence", "amplifier_bandwidth"]
+        );
+        assert!(g.either_reason.contains("back-EMF"), "{}", g.either_reason);
+        // The coil current separates them: partly an eddy path alone.
+        let g = grade(
+            "unexplained",
+            &[],
+            std::slice::from_ref(&eddy),
+            (0.0, 1e-4),
+            true,
+        );
+        assert_eq!(g.grade, Grade::PartlyExplained);
+        assert!(g.either.is_empty(), "{:?}", g.either);
+        // An effect no other enters the term of stays partly itself.
+        let load = candidate(
+            "mechanical_load",
+            0.5e-6,
+            &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)],
+            false,
+        );
+        let g = grade("unexplained", &[], &[load], (0.0, 1e-4), false);
+        assert_eq!(g.grade, Grade::PartlyExplained);
+        assert!(g.either.is_empty(), "{:?}", g.either);
+    }
+
+    #[test]
     fn an_eddy_path_is_either_it_or_a_current_loop_yielding_to_the_back_emf() {
         let eddy = candidate("eddy_frequency_dependence", 1.0e-7, &[], true);
         let amp = candidate("amplifier_bandwidth", 5.0e-7, &[], false);

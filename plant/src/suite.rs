@@ -163,7 +163,8 @@ impl Kind {
 
     /// Right under the graded scoring: the truth is in the verdict and it names at most two
     /// effects. A single effect X: X named alone or beside one other (a pair, or X with the rest
-    /// `unexplained`), "partly explained by X", or "X or Y"; a pair: both named; an
+    /// `unexplained`), "partly explained by X" (or "by X or Y", or "by Y or X"), or "X or Y"; a
+    /// pair: both named; an
     /// out-of-library effect: `unexplained` (in either of its grades: no library effect named
     /// as the explanation); noise only: `none`.
     pub fn graded_right(&self, said: &Said) -> bool {
@@ -201,14 +202,17 @@ pub struct Said<'a> {
     pub grade: &'a str,
     /// The effect of a `partly_explained` grade.
     pub partly_explained: Option<&'a str>,
-    /// The two effects of an `either` grade (empty otherwise).
+    /// The two effects of an `either` grade, or of a `partly_explained` one by "X or Y" (empty
+    /// otherwise).
     pub either: &'a [String],
 }
 
 impl Said<'_> {
-    /// The verdict as graded: `partly X`, `X or Y`, else the named set joined by `+`.
+    /// The verdict as graded: `partly X`, `partly X or Y`, `X or Y`, else the named set joined
+    /// by `+`.
     pub fn label(&self) -> String {
         match (self.partly_explained, self.either) {
+            (Some(_), [a, b]) => format!("partly {a} or {b}"),
             (Some(p), _) => format!("partly {p}"),
             (None, [a, b]) => format!("{a} or {b}"),
             _ => self.named.join("+"),
@@ -969,6 +973,21 @@ mod tests {
             amp(),
             (UNEXPLAINED, UNEXPLAINED, "partly_explained"),
             (SENSOR, ""),
+            (false, false),
+        );
+        // Partly explained by "X or Y" (the two enter one term): right when the truth is either.
+        let eddy = "eddy_frequency_dependence";
+        let eddy_or_amp = "amplifier_bandwidth+eddy_frequency_dependence";
+        check(
+            amp(),
+            (UNEXPLAINED, UNEXPLAINED, "partly_explained"),
+            (eddy, eddy_or_amp),
+            (false, true),
+        );
+        check(
+            Kind::Single(SENSOR),
+            (UNEXPLAINED, UNEXPLAINED, "partly_explained"),
+            (eddy, eddy_or_amp),
             (false, false),
         );
         check(amp(), (SENSOR, SENSOR, "effect"), ("", ""), (false, false));

@@ -7,7 +7,7 @@
 //! | `effect` | one significant effect, no other as good | that effect explains the gap |
 //! | `pair` | a pair named (step 8) | both effects are needed |
 //! | `either` | a significant single winner and another significant candidate within [`AMBIGUOUS_HELD_OUT`] of its held-out error, or as good on training and apart on the held-out experiments by less than the winner's own training misfit, or behind it on the training and the held-out experiments each by less than what the winner itself leaves there, or a winner whose term another effect enters as well ([`SAME_TERM`]) | "X or Y": these experiments cannot separate them |
-//! | `partly_explained` | no effect explains the gap, but one removes more than half of its energy in every held-out band, and more than half of what its own fit leaves with the effect switched off | "partly explained by X (share ± spread), the rest unexplained" |
+//! | `partly_explained` | no effect explains the gap, but one removes more than half of its energy in every held-out band, and more than half of what its own fit leaves with the effect switched off | "partly explained by X (share ± spread), the rest unexplained"; "by X or Y" when another effect enters X's term ([`SAME_TERM`]) |
 //! | `unexplained` | none of these | no library effect accounts for most of the gap |
 //!
 //! The share threshold ([`PARTIAL_SHARE`]) is definitional, not fitted to cases: a part larger
@@ -30,7 +30,9 @@
 //! the eddy ODE with a frequency-dependent `c1` — the `eddy_frequency_dependence` candidate's
 //! form (a second eddy path is a frequency-dependent `R_eddy`). With the commanded current the
 //! only current a dataset holds, an `eddy_frequency_dependence` verdict is therefore always
-//! "eddy_frequency_dependence or amplifier_bandwidth"; the measured coil current separates them
+//! "eddy_frequency_dependence or amplifier_bandwidth", and so is the part of a gap an eddy path
+//! explains when it explains only part ("partly explained by eddy_frequency_dependence or
+//! amplifier_bandwidth": the loop's share is the same term's); the measured coil current separates them
 //! (the eddy path leaves it equal to the command, the loop does not). The converse does not
 //! hold: the library's amplifier (a lag on the command, independent of the rod) is not in the
 //! eddy candidate's form, and the fits separate the two.
@@ -100,9 +102,11 @@ pub struct Graded {
     pub grade: Grade,
     /// For [`Grade::PartlyExplained`].
     pub partly: Option<PartialExplanation>,
-    /// For [`Grade::Either`]: the two effects, the verdict's first.
+    /// For [`Grade::Either`]: the two effects, the verdict's first; for
+    /// [`Grade::PartlyExplained`] by an effect another enters the same term as
+    /// ([`SAME_TERM`]): that effect and the other.
     pub either: Vec<String>,
-    /// For [`Grade::Either`]: why the experiments cannot separate them.
+    /// Why the experiments cannot separate the two of `either`.
     pub either_reason: String,
 }
 
@@ -125,11 +129,20 @@ pub fn grade(
     match verdict {
         "none" => graded(Grade::None),
         "unexplained" => match partial(ranking, noise_m, range_m) {
-            Some(p) => Graded {
-                grade: Grade::PartlyExplained,
-                partly: Some(p),
-                ..graded(Grade::PartlyExplained)
-            },
+            Some(p) => {
+                // The part an effect explains is as much the other's when both enter the same
+                // term (module docs): "partly explained by X or Y".
+                let (either, either_reason) = match same_term(&p.effect, coil_current_measured) {
+                    Some((other, why)) => (vec![p.effect.clone(), other.to_string()], why.into()),
+                    None => (Vec::new(), String::new()),
+                };
+                Graded {
+                    grade: Grade::PartlyExplained,
+                    partly: Some(p),
+                    either,
+                    either_reason,
+                }
+            }
             None => graded(Grade::Unexplained),
         },
         _ if !additional_effects.is_empty() => graded(Grade::Pair),
@@ -153,11 +166,8 @@ pub fn grade(
                 },
                 ..graded(Grade::Either)
             },
-            None => match SAME_TERM
-                .iter()
-                .find(|(w, ..)| *w == winner && !coil_current_measured)
-            {
-                Some((_, other, why)) => Graded {
+            None => match same_term(winner, coil_current_measured) {
+                Some((other, why)) => Graded {
                     either: vec![winner.to_string(), other.to_string()],
                     either_reason: why.to_string(),
                     ..graded(Grade::Either)
@@ -166,6 +176,15 @@ pub fn grade(
             },
         },
     }
+}
+
+/// The effect that enters the same term of the model as `effect` ([`SAME_TERM`]) and why, when
+/// the dataset does not record the coil current that separates them.
+fn same_term(effect: &str, coil_current_measured: bool) -> Option<(&'static str, &'static str)> {
+    SAME_TERM
+        .iter()
+        .find(|(e, ..)| *e == effect && !coil_current_measured)
+        .map(|&(_, other, why)| (other, why))
 }
 
 /// The best other significant candidate the held-out experiments do not separate from

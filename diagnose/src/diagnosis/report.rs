@@ -116,7 +116,9 @@ pub struct Diagnosis {
     /// over the held-out bands; the verdict stays `unexplained` (the rest is).
     pub partly_explained: Option<super::grade::PartialExplanation>,
     /// For the grade `either`: the verdict's effect and the one the experiments cannot separate
-    /// from it.
+    /// from it; for `partly_explained`, the partly explaining effect and the one that enters the
+    /// same term of the model when the dataset does not record the coil current
+    /// ([`super::grade::SAME_TERM`]): "partly explained by X or Y".
     pub either: Vec<String>,
     /// What to record next to separate the verdict from the candidates beside it
     /// ([`super::advice`]): the recording, why it separates them, the command that writes it.
