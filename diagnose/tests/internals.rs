@@ -334,17 +334,26 @@ mod grade {
         c
     }
 
-    #[test]
-    fn partly_explained_needs_more_than_half_in_every_band() {
-        // Removes 75 % of the energy overall and in both bands.
-        let c = candidate("creep", 0.5e-6, &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)], false);
-        let g = grade(
+    /// A candidate that is not significant but removes 75 % of the gap's energy overall and in
+    /// both held-out bands.
+    fn three_quarters(effect: &str) -> CandidateResult {
+        candidate(effect, 0.5e-6, &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)], false)
+    }
+
+    /// The grade of an `unexplained` verdict with `c` the only candidate.
+    fn grade_unexplained(c: &CandidateResult, coil_current_measured: bool) -> Graded {
+        grade(
             "unexplained",
             &[],
-            std::slice::from_ref(&c),
+            std::slice::from_ref(c),
             (0.0, 1e-4),
-            false,
-        );
+            coil_current_measured,
+        )
+    }
+
+    #[test]
+    fn partly_explained_needs_more_than_half_in_every_band() {
+        let g = grade_unexplained(&three_quarters("creep"), false);
         assert_eq!(g.grade, Grade::PartlyExplained);
         let p = g.partly.unwrap();
         assert!((p.share_of_gap - 0.75).abs() < 1e-12, "{p:?}");
@@ -487,20 +496,8 @@ mod grade {
 
     #[test]
     fn the_part_an_eddy_path_explains_is_as_much_a_current_loops() {
-        // Removes 75 % of the gap's energy in every band: partly explained.
-        let eddy = candidate(
-            "eddy_frequency_dependence",
-            0.5e-6,
-            &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)],
-            false,
-        );
-        let g = grade(
-            "unexplained",
-            &[],
-            std::slice::from_ref(&eddy),
-            (0.0, 1e-4),
-            false,
-        );
+        let eddy = three_quarters("eddy_frequency_dependence");
+        let g = grade_unexplained(&eddy, false);
         assert_eq!(g.grade, Grade::PartlyExplained);
         assert_eq!(g.partly.unwrap().effect, "eddy_frequency_dependence");
         assert_eq!(
@@ -509,23 +506,11 @@ mod grade {
         );
         assert!(g.either_reason.contains("back-EMF"), "{}", g.either_reason);
         // The coil current separates them: partly an eddy path alone.
-        let g = grade(
-            "unexplained",
-            &[],
-            std::slice::from_ref(&eddy),
-            (0.0, 1e-4),
-            true,
-        );
+        let g = grade_unexplained(&eddy, true);
         assert_eq!(g.grade, Grade::PartlyExplained);
         assert!(g.either.is_empty(), "{:?}", g.either);
         // An effect no other enters the term of stays partly itself.
-        let load = candidate(
-            "mechanical_load",
-            0.5e-6,
-            &[(1e-6, 0.5e-6), (1e-6, 0.5e-6)],
-            false,
-        );
-        let g = grade("unexplained", &[], &[load], (0.0, 1e-4), false);
+        let g = grade_unexplained(&three_quarters("mechanical_load"), false);
         assert_eq!(g.grade, Grade::PartlyExplained);
         assert!(g.either.is_empty(), "{:?}", g.either);
     }

@@ -164,9 +164,8 @@ impl Kind {
     /// Right under the graded scoring: the truth is in the verdict and it names at most two
     /// effects. A single effect X: X named alone or beside one other (a pair, or X with the rest
     /// `unexplained`), "partly explained by X" (or "by X or Y", or "by Y or X"), or "X or Y"; a
-    /// pair: both named; an
-    /// out-of-library effect: `unexplained` (in either of its grades: no library effect named
-    /// as the explanation); noise only: `none`.
+    /// pair: both named; an out-of-library effect: `unexplained` (in either of its grades: no
+    /// library effect named as the explanation); noise only: `none`.
     pub fn graded_right(&self, said: &Said) -> bool {
         match self {
             Kind::Single(e) => {

@@ -32,10 +32,10 @@
 //! only current a dataset holds, an `eddy_frequency_dependence` verdict is therefore always
 //! "eddy_frequency_dependence or amplifier_bandwidth", and so is the part of a gap an eddy path
 //! explains when it explains only part ("partly explained by eddy_frequency_dependence or
-//! amplifier_bandwidth": the loop's share is the same term's); the measured coil current separates them
-//! (the eddy path leaves it equal to the command, the loop does not). The converse does not
-//! hold: the library's amplifier (a lag on the command, independent of the rod) is not in the
-//! eddy candidate's form, and the fits separate the two.
+//! amplifier_bandwidth": the loop's share is the same term's); the measured coil current
+//! separates them (the eddy path leaves it equal to the command, the loop does not). The
+//! converse does not hold: the library's amplifier (a lag on the command, independent of the
+//! rod) is not in the eddy candidate's form, and the fits separate the two.
 
 use super::report::CandidateResult;
 use super::rules::{resolution_floor, AMBIGUOUS_HELD_OUT, MAX_WORSE_SHARE, PARTIAL_SHARE};
