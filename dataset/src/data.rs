@@ -292,15 +292,31 @@ pub fn load_dataset(dir: &Path) -> Result<Dataset, DataError> {
         .iter()
         .map(|p| load_measurement(p))
         .collect::<Result<Vec<_>, _>>()?;
-    if let Some(first) = measurements.first() {
-        let has = |m: &Measurement| m.coil_current_a.is_some();
-        if let Some(other) = measurements.iter().find(|m| has(m) != has(first)) {
+    coil_current_recorded(&measurements.iter().collect::<Vec<_>>())?;
+    Ok(Dataset {
+        dir: dir.to_path_buf(),
+        measurements,
+        ignored,
+    })
+}
+
+/// Whether the files of one dataset, `records`, hold the coil-current column: every file records
+/// it or none does, and a dataset with it in some files only is an error naming a file without
+/// it and one with it.
+pub fn coil_current_recorded(records: &[&Measurement]) -> Result<bool, DataError> {
+    let Some(first) = records.first() else {
+        return Ok(false);
+    };
+    let has = |m: &Measurement| m.coil_current_a.is_some();
+    match records.iter().find(|m| has(m) != has(first)) {
+        None => Ok(has(first)),
+        Some(other) => {
             let (with, without) = if has(first) {
-                (first, other)
+                (*first, *other)
             } else {
-                (other, first)
+                (*other, *first)
             };
-            return Err(DataError::at(
+            Err(DataError::at(
                 &without.path,
                 1,
                 Some(COIL_CURRENT_COLUMN),
@@ -309,14 +325,9 @@ pub fn load_dataset(dir: &Path) -> Result<Dataset, DataError> {
                      records the coil current or none does",
                     with.path.display()
                 ),
-            ));
+            ))
         }
     }
-    Ok(Dataset {
-        dir: dir.to_path_buf(),
-        measurements,
-        ignored,
-    })
 }
 
 /// Writes a measurement file in the format above (full f64 precision), with the

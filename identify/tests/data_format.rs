@@ -235,3 +235,28 @@ fn a_dataset_records_the_coil_current_in_every_file_or_in_none() {
     assert_eq!(e.column.as_deref(), Some("coil_current_a"));
     assert!(e.reason.contains("b.csv"), "{e}");
 }
+
+#[test]
+fn an_identification_folder_records_the_coil_current_in_both_sub_folders_or_in_neither() {
+    let folder = tempfile::tempdir().unwrap();
+    let dir = folder.path();
+    let quasi_static = dir.join("quasi-static");
+    let dynamic = dir.join("dynamic");
+    std::fs::create_dir_all(&quasi_static).unwrap();
+    std::fs::create_dir_all(&dynamic).unwrap();
+    std::fs::write(quasi_static.join("a.csv"), GOOD).unwrap();
+    // Each sub-folder is consistent on its own; the dynamic one records the current, 50 Hz.
+    let mut sine = String::from("t_s,current_a,displacement_m,coil_current_a\n");
+    for k in 0..200 {
+        let t = k as f64 * 1e-4;
+        let i = 0.8 + 0.2 * (2.0 * std::f64::consts::PI * 50.0 * t).sin();
+        sine += &format!("{t},{i},{},{i}\n", 1e-5 * i);
+    }
+    std::fs::write(dynamic.join("b.csv"), sine).unwrap();
+    let Err(e) = maglab_identify::RecordedDataset::load(dir, &Default::default()) else {
+        panic!("a folder with the column in some files only is refused");
+    };
+    assert_eq!(e.path, quasi_static.join("a.csv"));
+    assert_eq!(e.column.as_deref(), Some("coil_current_a"));
+    assert!(e.reason.contains("b.csv"), "{e}");
+}

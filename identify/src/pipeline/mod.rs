@@ -66,7 +66,7 @@ impl RecordedDataset {
     pub fn load(dir: &Path, classify: &ClassifyOptions) -> Result<Self, DataError> {
         let split = load_split_dataset(dir, classify)?;
         let (amplifier, dynamic_on_measured_current, quasi_static_on_coil_current) =
-            match on_measured_current(&split)? {
+            match on_coil_current_channel(&split)? {
                 Some((a, d, q)) => (Some(a), Some(d), Some(q)),
                 None => (None, None, None),
             };
@@ -103,13 +103,14 @@ impl RecordedDataset {
     }
 }
 
-/// With the coil current recorded in every file: the amplifier judged on the command against
-/// it, the dynamic experiments with the measured current as their current (its monitor noise
-/// taken out: `maglab_model::coil_current::coil_current_input`), and the quasi-static ones with
-/// it at their sample instants (`maglab_model::coil_current::coil_current_at_samples`). A
-/// dataset with the column in some files only is an error naming the first file that differs.
+/// With the coil current recorded in every file of both sub-folders
+/// (`maglab_dataset::data::coil_current_recorded`, an error when only some have it): the
+/// amplifier judged on the command against it, the dynamic experiments with the measured current
+/// as their current (its monitor noise taken out:
+/// `maglab_model::coil_current::coil_current_input`), and the quasi-static ones with it at their
+/// sample instants (`maglab_model::coil_current::coil_current_at_samples`).
 #[allow(clippy::type_complexity)]
-fn on_measured_current(
+fn on_coil_current_channel(
     split: &SplitDataset,
 ) -> Result<Option<(AmplifierJudgement, Vec<DynamicExperiment>, Vec<Measurement>)>, DataError> {
     let all: Vec<&Measurement> = split
@@ -117,27 +118,8 @@ fn on_measured_current(
         .iter()
         .chain(split.dynamic.iter().map(|d| &d.measurement))
         .collect();
-    let Some(first) = all.first() else {
+    if !maglab_dataset::data::coil_current_recorded(&all)? {
         return Ok(None);
-    };
-    let has = |m: &Measurement| m.coil_current_a.is_some();
-    if let Some(other) = all.iter().find(|m| has(m) != has(first)) {
-        let (with, without) = if has(first) {
-            (*first, *other)
-        } else {
-            (*other, *first)
-        };
-        return Err(DataError::at(
-            &without.path,
-            1,
-            Some(maglab_dataset::data::COIL_CURRENT_COLUMN),
-            format!(
-                "no `{}` column, but {} has one: in a dataset every file records the coil \
-                 current or none does",
-                maglab_dataset::data::COIL_CURRENT_COLUMN,
-                with.path.display()
-            ),
-        ));
     }
     let owned: Vec<Measurement> = all.into_iter().cloned().collect();
     let Some(judgement) = coil_current::judge(&owned) else {
