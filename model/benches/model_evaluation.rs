@@ -9,11 +9,18 @@
 //! rod step by step (its stiffness depends on the state); every other form steps the rod and
 //! load as a precomputed linear map.
 //!
+//! The second group is the mechanical stage of a Jacobian's mechanical columns: eight ΔE and
+//! load parameter sets (each one coefficient moved by a forward-difference step) on one
+//! electromagnetic run, one by one (`track_mech` each) and side by side (`track_mech_lanes`,
+//! the same tracks bit for bit).
+//!
 //! Run: `cargo bench -p maglab-model --bench model_evaluation`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use maglab_dataset::{CurrentBetweenSamples, StartState};
-use maglab_model::model::{simulate, Electro, Mech, ModelStart, Nominal};
+use maglab_model::model::{
+    run_electro, simulate, track_mech, track_mech_lanes, Electro, Mech, ModelStart, Nominal,
+};
 use std::f64::consts::PI;
 use std::hint::black_box;
 
@@ -102,6 +109,75 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
+    group.finish();
+
+    // The Jacobian's mechanical columns of a ΔE + load pair.
+    let run = run_electro(
+        &nominal,
+        &measure,
+        &electro,
+        &currents_a,
+        STEP_S,
+        CurrentBetweenSamples::Linear,
+        &ModelStart::State(StartState::Demagnetized),
+        None,
+        1,
+    );
+    let base = Mech {
+        delta_e: Some((0.5, -0.3, 0.2, 0.1)),
+        load: Some((0.3, 900.0, 0.2)),
+        ..mech
+    };
+    let columns: Vec<Mech> = (0..8)
+        .map(|k| {
+            let (mut d, mut load) = (base.delta_e.expect("ΔE"), base.load.expect("load"));
+            let step = 1.001;
+            match k {
+                0 => d.0 *= step,
+                1 => d.1 *= step,
+                2 => d.2 *= step,
+                3 => d.3 *= step,
+                4 => load.0 *= step,
+                5 => load.1 *= step,
+                6 => load.2 *= step,
+                _ => {}
+            }
+            Mech {
+                delta_e: Some(d),
+                load: Some(load),
+                damping_ratio: if k == 7 {
+                    base.damping_ratio * 1.001
+                } else {
+                    base.damping_ratio
+                },
+                ..base
+            }
+        })
+        .collect();
+    let starts = vec![(0.0, 0.0); columns.len()];
+    let mut group =
+        c.benchmark_group("Jacobian's mechanical columns, ΔE + load, 8 x 3,000 samples");
+    group.throughput(Throughput::Elements((SAMPLES * columns.len()) as u64));
+    group.bench_function("one by one", |b| {
+        b.iter(|| {
+            columns
+                .iter()
+                .map(|m| track_mech(&nominal, black_box(m), &run, SAMPLES, STEP_S, (0.0, 0.0)))
+                .collect::<Vec<_>>()
+        })
+    });
+    group.bench_function("side by side", |b| {
+        b.iter(|| {
+            track_mech_lanes(
+                &nominal,
+                black_box(&columns),
+                &run,
+                SAMPLES,
+                STEP_S,
+                &starts,
+            )
+        })
+    });
     group.finish();
 }
 

@@ -392,6 +392,50 @@ mod model {
     }
 
     #[test]
+    fn parameter_sets_integrated_side_by_side_are_each_the_track_alone_bit_for_bit() {
+        // Fifteen sets on one run: five each of the rod alone, with a load, with a second mode;
+        // four of each five with ΔE (of strengths that need different `sub`s, so that groups of
+        // one to four form), the fifth linear; every other one heated. Each must be exactly the
+        // track `track_mech` gives alone.
+        let (nominal, measure) = paper_model();
+        let step_s = 1e-4;
+        let currents: Vec<f64> = (0..1500)
+            .map(|k| 0.4 + 0.3 * (2.0 * PI * 120.0 * k as f64 * step_s).sin())
+            .collect();
+        let run = nominal_electro(&nominal, &measure, &currents, step_s, 2);
+        let mut sets = Vec::new();
+        for k in 0..15 {
+            let mut mech = Mech::nominal(0.5 + 0.02 * k as f64, nominal.resonance_hz);
+            if k % 5 != 4 {
+                let strength = if k % 5 == 3 {
+                    30.0
+                } else {
+                    0.3 + 0.5 * k as f64
+                };
+                mech.delta_e = Some((strength, -0.2, 0.1, 0.02 * k as f64));
+            }
+            if k >= 5 {
+                mech.load = Some((0.3, 700.0 + 150.0 * k as f64, 0.2));
+            }
+            if k >= 10 {
+                mech.second_load = Some((0.4, 2000.0, 0.1));
+            }
+            if k % 2 == 1 {
+                mech.thermal = Some((0.3, 0.2, 0.01, 0.02));
+            }
+            sets.push(mech);
+        }
+        let theta0: Vec<(f64, f64)> = (0..sets.len()).map(|k| (0.01 * k as f64, 0.0)).collect();
+        let together = track_mech_lanes(&nominal, &sets, &run, currents.len(), step_s, &theta0);
+        assert_eq!(together.len(), sets.len());
+        for ((mech, t0), lane) in sets.iter().zip(&theta0).zip(&together) {
+            let alone = track_mech(&nominal, mech, &run, currents.len(), step_s, *t0);
+            assert_eq!(lane.pos_m, alone.pos_m, "{mech:?}");
+            assert_eq!(lane.rate_m_per_s, alone.rate_m_per_s, "{mech:?}");
+        }
+    }
+
+    #[test]
     fn a_heated_rod_keeps_a_fraction_of_its_strain_never_a_negative_one() {
         // Thermal drift's gain `1 − g φ` is the fraction of λ_s the warm rod keeps: at a steady
         // `φ = I²` with `g φ = 0.5` the rod settles at half its cold displacement; with
