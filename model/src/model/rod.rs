@@ -20,7 +20,8 @@ pub fn track_mech(
 
 /// [`track_mech`] of several parameter sets on the same run, each with its starting temperature
 /// (`theta0[i]` for `mechs[i]`), integrated side by side (see `mech_states`): the same tracks
-/// as one at a time, in less time when the rod is nonlinear (ΔE).
+/// as one at a time, in less time when the rod is nonlinear (ΔE). Panics unless there is one
+/// start per set.
 pub fn track_mech_lanes(
     nominal: &Nominal,
     mechs: &[Mech],
@@ -33,7 +34,7 @@ pub fn track_mech_lanes(
     // The load's states exist only when it is switched on (a compile-time size: the rod alone
     // keeps two states, one load mode four; the states of an absent load would stay at rest
     // and only cost arithmetic). Sets of different sizes run in groups of their size.
-    let states = |m: &Mech| {
+    let size = |m: &Mech| {
         if m.second_load.is_some() {
             6
         } else if m.load.is_some() {
@@ -44,9 +45,7 @@ pub fn track_mech_lanes(
     };
     let mut tracks: Vec<Option<MechTrack>> = vec![None; mechs.len()];
     for n in [2, 4, 6] {
-        let group: Vec<usize> = (0..mechs.len())
-            .filter(|&i| states(&mechs[i]) == n)
-            .collect();
+        let group: Vec<usize> = (0..mechs.len()).filter(|&i| size(&mechs[i]) == n).collect();
         if group.is_empty() {
             continue;
         }
