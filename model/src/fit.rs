@@ -38,8 +38,8 @@
 use crate::candidates::{self, Candidate, ParamSpec, Stage, COMMON_PARAMETER_COUNT};
 use crate::effects::EffectName;
 use crate::model::{
-    chained_temperature, observe, run_electro, run_electro_single, run_mech, track_mech,
-    track_mech_lanes, Electro, ElectroRun, Mech, MechTrack, ModelStart, Nominal,
+    chained_temperature, observe, run_electro, run_electro_single, run_mech, track_mech_lanes,
+    Electro, ElectroRun, Mech, MechTrack, ModelStart, Nominal,
 };
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use magctl::preisach::PreisachMeasure;
@@ -447,18 +447,45 @@ impl<'a> Problem<'a> {
     /// The tracks of the training experiments for `e` and `m`.
     fn tracks(&self, e: &Electro, m: &Mech) -> Arc<Vec<MechTrack>> {
         self.tracks.get_or_make((*e, m.track_key()), || {
-            let runs = self.electro_runs(e);
-            self.training
-                .par_iter()
-                .zip(runs.par_iter())
-                .zip(self.lengths.par_iter())
-                .map(|((&k, run), &len)| {
-                    let x = &self.data[k];
-                    let theta0 = chained_temperature(m, &x.heat_history, self.setup.step_s);
-                    track_mech(self.setup.nominal, m, run, len, self.setup.step_s, theta0)
-                })
-                .collect()
+            let mut by_set = self.tracks_of(e, &[*m]);
+            by_set.pop().expect("one set, one list of tracks")
         })
+    }
+
+    /// The tracks of the training experiments for `e` and each of `mechs` (by set), integrated
+    /// side by side ([`track_mech_lanes`]), experiment by experiment in parallel.
+    fn tracks_of(&self, e: &Electro, mechs: &[Mech]) -> Vec<Vec<MechTrack>> {
+        let runs = self.electro_runs(e);
+        let by_experiment: Vec<Vec<MechTrack>> = self
+            .training
+            .par_iter()
+            .zip(runs.par_iter())
+            .zip(self.lengths.par_iter())
+            .map(|((&k, run), &len)| {
+                let x = &self.data[k];
+                let theta0: Vec<(f64, f64)> = mechs
+                    .iter()
+                    .map(|m| chained_temperature(m, &x.heat_history, self.setup.step_s))
+                    .collect();
+                track_mech_lanes(
+                    self.setup.nominal,
+                    mechs,
+                    run,
+                    len,
+                    self.setup.step_s,
+                    &theta0,
+                )
+            })
+            .collect();
+        let mut by_set: Vec<Vec<MechTrack>> = (0..mechs.len())
+            .map(|_| Vec::with_capacity(by_experiment.len()))
+            .collect();
+        for tracks in by_experiment {
+            for (set, track) in by_set.iter_mut().zip(tracks) {
+                set.push(track);
+            }
+        }
+        by_set
     }
 
     fn eval(&self, z: &DVector<f64>) -> Option<DVector<f64>> {
@@ -486,37 +513,7 @@ impl<'a> Problem<'a> {
         self.evaluations
             .fetch_add(zs.len() as u64, Ordering::Relaxed);
         let mechs: Vec<Mech> = models.iter().map(|&(_, m)| m).collect();
-        let runs = self.electro_runs(&e);
-        // Experiment by experiment (in parallel), every set's track.
-        let by_experiment: Vec<Vec<MechTrack>> = self
-            .training
-            .par_iter()
-            .zip(runs.par_iter())
-            .zip(self.lengths.par_iter())
-            .map(|((&k, run), &len)| {
-                let x = &self.data[k];
-                let theta0: Vec<(f64, f64)> = mechs
-                    .iter()
-                    .map(|m| chained_temperature(m, &x.heat_history, self.setup.step_s))
-                    .collect();
-                track_mech_lanes(
-                    self.setup.nominal,
-                    &mechs,
-                    run,
-                    len,
-                    self.setup.step_s,
-                    &theta0,
-                )
-            })
-            .collect();
-        let mut by_set: Vec<Vec<MechTrack>> = (0..mechs.len())
-            .map(|_| Vec::with_capacity(by_experiment.len()))
-            .collect();
-        for tracks in by_experiment {
-            for (set, track) in by_set.iter_mut().zip(tracks) {
-                set.push(track);
-            }
-        }
+        let by_set = self.tracks_of(&e, &mechs);
         mechs
             .iter()
             .zip(&by_set)
@@ -584,47 +581,36 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
         let n = self.z.len();
         let fixed = self.head.len();
         let mut jac = DMatrix::zeros(base.len(), n);
-        // The columns that leave the mechanical track as it is (the skew, the sensor) first,
-        // while the base track is cached; then the other mechanical ones, while the base
-        // electromagnetic run is cached; the electromagnetic ones last.
-        let (_, base_mech) = candidates::model_parameters(self.candidate, &self.values(&self.z));
-        let moves_track = |j: usize| {
+        let shifted = |j: usize| {
             let mut z = self.z.clone();
             z[j] += JACOBIAN_STEP;
-            let (_, m) = candidates::model_parameters(self.candidate, &self.values(&z));
+            z
+        };
+        let electro = |j: usize| self.specs[fixed + j].stage == Stage::Electro;
+        let (_, base_mech) = candidates::model_parameters(self.candidate, &self.values(&self.z));
+        let moves_track = |j: usize| {
+            let (_, m) = candidates::model_parameters(self.candidate, &self.values(&shifted(j)));
             m.track_key() != base_mech.track_key()
         };
+        // The mechanical columns that move the track first, side by side on the base
+        // electromagnetic run (`eval_lanes`: the same columns, in less time when the rod is
+        // nonlinear); then those that leave the track as it is (the skew, the sensor), read off
+        // the cached base track; the electromagnetic ones last.
+        let lanes: Vec<usize> = (0..n).filter(|&j| !electro(j) && moves_track(j)).collect();
+        let points: Vec<DVector<f64>> = lanes.iter().map(|&j| shifted(j)).collect();
+        let mut from_lanes: Vec<Option<DVector<f64>>> = vec![None; n];
+        for (&j, r) in lanes.iter().zip(self.eval_lanes(&points)?) {
+            from_lanes[j] = Some(r);
+        }
         let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by_key(|&j| {
-            (
-                self.specs[fixed + j].stage == Stage::Electro,
-                moves_track(j),
-            )
-        });
-        // The mechanical columns that move the track, side by side on the base electromagnetic
-        // run (`eval_lanes`: the same columns, in less time when the rod is nonlinear).
-        let lanes: Vec<usize> = order
-            .iter()
-            .copied()
-            .filter(|&j| self.specs[fixed + j].stage != Stage::Electro && moves_track(j))
-            .collect();
-        let shifted: Vec<DVector<f64>> = lanes
-            .iter()
-            .map(|&j| {
-                let mut z = self.z.clone();
-                z[j] += JACOBIAN_STEP;
-                z
-            })
-            .collect();
-        let mut lane_residuals = self.eval_lanes(&shifted)?.into_iter();
+        order.sort_by_key(|&j| electro(j));
         // The electromagnetic columns from single runs (module docs): a problem of its own, with
         // caches of its own, and its own base point, so that no Richardson offset enters a
         // difference.
         let mut single: Option<(Problem<'_>, DVector<f64>)> = None;
         for j in order {
-            let mut z = self.z.clone();
-            z[j] += JACOBIAN_STEP;
-            let column = if self.specs[fixed + j].stage == Stage::Electro {
+            let z = shifted(j);
+            let column = if electro(j) {
                 if single.is_none() {
                     let problem = self.single_run_twin();
                     let base = problem.eval(&self.z)?;
@@ -637,10 +623,9 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
                 }
                 (r - single_base) / JACOBIAN_STEP
             } else {
-                let r = if lanes.contains(&j) {
-                    lane_residuals.next()?
-                } else {
-                    self.eval(&z)?
+                let r = match from_lanes[j].take() {
+                    Some(r) => r,
+                    None => self.eval(&z)?,
                 };
                 if r.len() != base.len() {
                     return None;
