@@ -98,8 +98,9 @@ fn read_frame(input: &mut impl Read) -> Result<Option<CommandFrame>> {
         .map_err(|e| anyhow::anyhow!("bad command frame {b:02x?}: {e:?}"))
 }
 
-/// Runs the plant program.
-pub fn run(args: &Args) -> Result<()> {
+/// The run's plant effects and start state, parsed, and its noise levels checked: every
+/// argument is checked before the link is read.
+fn checked_arguments(args: &Args) -> Result<(Vec<Effect>, StartState)> {
     let effects = args
         .effects
         .iter()
@@ -115,12 +116,12 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let start = StartState::parse_among(&args.start, &HIL_STARTS)
         .map_err(|e| anyhow::anyhow!("--start: {e}"))?;
-    let loaded = params_io::load(args.params.as_deref())?;
-    let scale = SensorScale::new(&loaded.params.sensor);
-    let limit_a = loaded.params.control.current_limit_a as f64;
-    let mut input = std::io::stdin().lock();
-    let mut output = std::io::stdout().lock();
-    let Some(begin) = read_frame(&mut input)? else {
+    Ok((effects, start))
+}
+
+/// Waits for the firmware's B frame: `(tick rate, Hz; ticks of the run)`.
+fn await_begin(input: &mut impl Read) -> Result<(f64, u32)> {
+    let Some(begin) = read_frame(input)? else {
         bail!("the link closed before the firmware's B frame");
     };
     if begin.kind != KIND_BEGIN {
@@ -129,19 +130,29 @@ pub fn run(args: &Args) -> Result<()> {
             begin.kind as char
         );
     }
-    let rate_hz = begin.value as f64;
-    let ticks = begin.aux32;
+    Ok((begin.value as f64, begin.aux32))
+}
+
+/// The plant of `args` (`--rod`) at `rate_hz` started in `start`, driven through
+/// `--prior-history` random levels when asked (drawn from `rng`).
+fn started_plant(
+    args: &Args,
+    loaded: &params_io::LoadedParams,
+    (effects, start): (&[Effect], StartState),
+    rate_hz: f64,
+    rng: &mut rand::rngs::StdRng,
+) -> Result<Plant> {
     let mut plant = match &args.rod {
         Some(text) => {
             let rod = Rod::parse(text).map_err(|e| anyhow::anyhow!("--rod: {e}"))?;
-            Plant::with_rod(&loaded.file, &rod, &effects, rate_hz)
+            Plant::with_rod(&loaded.file, &rod, effects, rate_hz)
         }
-        None => Plant::new(&loaded.file, &effects, rate_hz),
+        None => Plant::new(&loaded.file, effects, rate_hz),
     }
     .map_err(|e| anyhow::anyhow!(e))?;
     plant.start(start, 0.0).map_err(|e| anyhow::anyhow!(e))?;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
     if args.prior_history > 0 {
+        let limit_a = loaded.params.control.current_limit_a as f64;
         let hold = (0.005 * rate_hz).ceil() as usize;
         for _ in 0..args.prior_history {
             let i = rng.random_range(-limit_a..=limit_a);
@@ -157,73 +168,121 @@ pub fn run(args: &Args) -> Result<()> {
             .start(StartState::Previous, 0.0)
             .map_err(|e| anyhow::anyhow!(e))?;
     }
-    let noise = Normal::new(0.0, args.noise_m.max(f64::MIN_POSITIVE))
-        .map_err(|e| anyhow::anyhow!("noise: {e}"))?;
-    let mut log = match &args.log {
-        Some(path) => {
-            let mut f = std::io::BufWriter::new(
-                std::fs::File::create(path)
-                    .with_context(|| format!("cannot write {}", path.display()))?,
-            );
-            writeln!(
-                f,
-                "tick,t_s,current_a,desired_m,y_m,sample_m,count,flags,instructions"
-            )?;
-            Some(f)
+    Ok(plant)
+}
+
+/// The bench's instruments: the displacement sensor (the file's conversion delay, white noise,
+/// the ADC's counts or metres) and, with `--coil-current-noise-a`, the current monitor.
+struct Instruments {
+    scale: SensorScale,
+    delay_s: f64,
+    noise_m: f64,
+    noise: Normal<f64>,
+    metres: bool,
+    /// The monitor's noise σ, A (`None`: no monitor).
+    monitor_noise_a: Option<f64>,
+    monitor_noise: Normal<f64>,
+    /// The monitor's noise comes from a stream of its own, so that the displacement noise
+    /// stays that of a run without the monitor.
+    monitor_rng: rand::rngs::StdRng,
+}
+
+impl Instruments {
+    fn new(args: &Args, loaded: &params_io::LoadedParams) -> Result<Self> {
+        Ok(Self {
+            scale: SensorScale::new(&loaded.params.sensor),
+            delay_s: loaded.file.sensor.sample_delay_s,
+            noise_m: args.noise_m,
+            noise: Normal::new(0.0, args.noise_m.max(f64::MIN_POSITIVE))
+                .map_err(|e| anyhow::anyhow!("noise: {e}"))?,
+            metres: args.metres,
+            monitor_noise_a: args.coil_current_noise_a,
+            monitor_noise: Normal::new(
+                0.0,
+                args.coil_current_noise_a
+                    .unwrap_or(0.0)
+                    .max(f64::MIN_POSITIVE),
+            )
+            .map_err(|e| anyhow::anyhow!("coil current noise: {e}"))?,
+            monitor_rng: rand::rngs::StdRng::seed_from_u64(args.seed ^ 0xc011_c0de),
+        })
+    }
+
+    /// The sensor's reading now: `(the frame's sample, the reading in m, its ADC count)`; the
+    /// noise from `rng`.
+    fn sample(&self, plant: &Plant, rng: &mut rand::rngs::StdRng) -> (Sample, f64, u32) {
+        let mut y = plant.sensor_at(plant.time_s() - self.delay_s);
+        if self.noise_m > 0.0 {
+            y += self.noise.sample(rng);
         }
-        None => None,
-    };
-    // The sensor's documented conversion delay (`sensor.sample_delay_s`).
-    let delay_s = loaded.file.sensor.sample_delay_s;
-    let sample_of = |plant: &Plant, rng: &mut rand::rngs::StdRng| -> (Sample, f64, u32) {
-        let mut y = plant.sensor_at(plant.time_s() - delay_s);
-        if args.noise_m > 0.0 {
-            y += noise.sample(rng);
-        }
-        if args.metres {
+        if self.metres {
             (Sample::Metres(y as f32), y, 0)
         } else {
-            let count = scale.count_of(y as f32);
+            let count = self.scale.count_of(y as f32);
             (Sample::Count(count), y, count)
         }
-    };
-    // The current monitor's reading: the coil current at the sample's instant, with its own
-    // noise from a stream of its own (the displacement noise stays that of a run without it).
-    let monitor_noise = Normal::new(
-        0.0,
-        args.coil_current_noise_a
-            .unwrap_or(0.0)
-            .max(f64::MIN_POSITIVE),
-    )
-    .map_err(|e| anyhow::anyhow!("coil current noise: {e}"))?;
-    let mut monitor_rng = rand::rngs::StdRng::seed_from_u64(args.seed ^ 0xc011_c0de);
-    let mut coil_current_of = |plant: &Plant| -> Option<f32> {
-        args.coil_current_noise_a.map(|n| {
-            let i = plant.coil_current_at(plant.time_s());
-            let noise = if n > 0.0 {
-                monitor_noise.sample(&mut monitor_rng)
-            } else {
-                0.0
-            };
-            (i + noise) as f32
-        })
-    };
-    let send = |output: &mut std::io::StdoutLock,
-                seq: u32,
-                sample: Sample,
-                coil_current_a: Option<f32>|
-     -> Result<()> {
-        let frame = SampleFrame {
-            seq: seq as u16,
-            sample,
-            coil_current_a,
+    }
+
+    /// The current monitor's reading now: the coil current at the sample's instant with the
+    /// monitor's noise.
+    fn coil_current_a(&mut self, plant: &Plant) -> Option<f32> {
+        let noise_a = self.monitor_noise_a?;
+        let i = plant.coil_current_at(plant.time_s());
+        let noise = if noise_a > 0.0 {
+            self.monitor_noise.sample(&mut self.monitor_rng)
+        } else {
+            0.0
         };
-        output.write_all(frame.encode().as_slice())?;
-        output.flush()?;
-        Ok(())
+        Some((i + noise) as f32)
+    }
+}
+
+/// `--log`'s writer, its header written.
+fn open_log(path: Option<&std::path::Path>) -> Result<Option<std::io::BufWriter<std::fs::File>>> {
+    let Some(path) = path else {
+        return Ok(None);
     };
-    let (mut sample, mut sample_m, mut count) = sample_of(&plant, &mut rng);
-    send(&mut output, 0, sample, coil_current_of(&plant))?;
+    let mut f = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?,
+    );
+    writeln!(
+        f,
+        "tick,t_s,current_a,desired_m,y_m,sample_m,count,flags,instructions"
+    )?;
+    Ok(Some(f))
+}
+
+/// Writes one sample frame.
+fn send(
+    output: &mut impl Write,
+    seq: u32,
+    sample: Sample,
+    coil_current_a: Option<f32>,
+) -> Result<()> {
+    let frame = SampleFrame {
+        seq: seq as u16,
+        sample,
+        coil_current_a,
+    };
+    output.write_all(frame.encode().as_slice())?;
+    output.flush()?;
+    Ok(())
+}
+
+/// Runs the plant program: the B frame, then per command frame one control period of the
+/// plant and the next sample frame, until the E frame.
+pub fn run(args: &Args) -> Result<()> {
+    let (effects, start) = checked_arguments(args)?;
+    let loaded = params_io::load(args.params.as_deref())?;
+    let mut input = std::io::stdin().lock();
+    let mut output = std::io::stdout().lock();
+    let (rate_hz, ticks) = await_begin(&mut input)?;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
+    let mut plant = started_plant(args, &loaded, (&effects, start), rate_hz, &mut rng)?;
+    let mut instruments = Instruments::new(args, &loaded)?;
+    let mut log = open_log(args.log.as_deref())?;
+    let (mut sample, mut sample_m, mut count) = instruments.sample(&plant, &mut rng);
+    send(&mut output, 0, sample, instruments.coil_current_a(&plant))?;
     let mut tick: u32 = 0;
     loop {
         let Some(frame) = read_frame(&mut input)? else {
@@ -267,9 +326,14 @@ pub fn run(args: &Args) -> Result<()> {
             )?;
         }
         tick += 1;
-        (sample, sample_m, count) = sample_of(&plant, &mut rng);
+        (sample, sample_m, count) = instruments.sample(&plant, &mut rng);
         if tick < ticks {
-            send(&mut output, tick, sample, coil_current_of(&plant))?;
+            send(
+                &mut output,
+                tick,
+                sample,
+                instruments.coil_current_a(&plant),
+            )?;
         }
     }
     if let Some(mut f) = log {

@@ -97,26 +97,10 @@ pub struct Args {
     pub manifest: Option<PathBuf>,
 }
 
-/// Runs `maglab rig`.
+/// Runs `maglab rig`: the experiments on the bench plant, written as a dataset folder.
 pub fn run(args: &Args) -> Result<()> {
     if args.list_effects {
-        for spec in EFFECTS {
-            println!(
-                "{}{}",
-                spec.name,
-                if spec.in_library {
-                    ""
-                } else {
-                    "  (not in the diagnosis library)"
-                }
-            );
-            for (k, v, lo, hi, what) in spec.keys {
-                println!("    {k} = {v}  in [{lo}, {hi}]  ({what})");
-            }
-            for (i, (form, equation)) in spec.forms.iter().enumerate() {
-                println!("    form={i}: {form}: {equation}");
-            }
-        }
+        print_effects();
         return Ok(());
     }
     let params = match &args.params {
@@ -135,6 +119,85 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let start =
         StartState::parse_among(&args.start, &PLANT_STARTS).map_err(|e| anyhow!("--start: {e}"))?;
+    let settings = bench_settings(args)?;
+    let experiments = experiments(args, &params, start)?;
+    let out = args
+        .out
+        .as_deref()
+        .ok_or_else(|| anyhow!("--out is required (the dataset folder)"))?;
+    let started = std::time::Instant::now();
+    let recordings = match &args.rod {
+        Some(text) => {
+            let rod = maglab_plant::Rod::parse(text).map_err(|e| anyhow!("--rod: {e}"))?;
+            let plant = maglab_plant::Plant::with_rod(&params, &rod, &effects, settings.rate_hz)
+                .map_err(|e| anyhow!(e))?;
+            bench::record_all_on(plant, &experiments, &settings)
+        }
+        None => bench::record_all(&params, &effects, &experiments, &settings),
+    }
+    .map_err(|e| anyhow!(e))?;
+    let paths = bench::write_dataset(out, &recordings).map_err(|e| anyhow!(e))?;
+    if args.undocumented {
+        std::fs::remove_file(out.join(maglab_dataset::dataset_info::FILE_NAME)).ok();
+    }
+    println!(
+        "wrote {} experiments to {} ({:.1} s of plant time at {} Hz in {:.1} s){}",
+        paths.len(),
+        out.display(),
+        recordings.iter().map(|r| r.t_s.len()).sum::<usize>() as f64 / args.rate_hz,
+        args.rate_hz,
+        started.elapsed().as_secs_f64(),
+        if args.undocumented {
+            "; start states not documented"
+        } else {
+            ""
+        }
+    );
+    drop(recordings);
+    let described: Vec<String> = effects.iter().map(|e| e.to_string()).collect();
+    println!(
+        "effects: {}",
+        if described.is_empty() {
+            "none".to_string()
+        } else {
+            described.join("; ")
+        }
+    );
+    if let Some(path) = &args.manifest {
+        std::fs::write(
+            path,
+            serde_json::to_string_pretty(&manifest(args, &effects))?,
+        )
+        .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// `--list-effects`: every effect with its keys, their defaults and ranges, and its forms.
+fn print_effects() {
+    for spec in EFFECTS {
+        println!(
+            "{}{}",
+            spec.name,
+            if spec.in_library {
+                ""
+            } else {
+                "  (not in the diagnosis library)"
+            }
+        );
+        for (k, v, lo, hi, what) in spec.keys {
+            println!("    {k} = {v}  in [{lo}, {hi}]  ({what})");
+        }
+        for (i, (form, equation)) in spec.forms.iter().enumerate() {
+            println!("    form={i}: {form}: {equation}");
+        }
+    }
+}
+
+/// What the bench adds to the plant's motion (`--rate-hz`, the nuisances, the noise, the
+/// current monitor), checked.
+fn bench_settings(args: &Args) -> Result<BenchSettings> {
     let current_between_samples = CurrentBetweenSamples::parse(&args.current_between_samples)
         .map_err(|e| anyhow!("--current-between-samples: {e}"))?;
     let settings = BenchSettings {
@@ -153,10 +216,20 @@ pub fn run(args: &Args) -> Result<()> {
             }),
     };
     settings.check().map_err(|e| anyhow!(e))?;
+    Ok(settings)
+}
+
+/// The experiments in recording order: the reversal sweep (`--forc-hz`), every sine of
+/// `--freq` × `--amplitude-a`, the Van der Pol trajectories (`--vdp-hz`).
+fn experiments(
+    args: &Args,
+    params: &actuator_params::ActuatorParams,
+    start: StartState,
+) -> Result<Vec<Experiment>> {
     let mut experiments = Vec::new();
     if args.forc_hz > 0.0 {
         experiments.push(
-            bench::forc_experiment(&params, args.forc_hz, args.rate_hz)
+            bench::forc_experiment(params, args.forc_hz, args.rate_hz)
                 .map_err(|e| anyhow!("--forc-hz: {e}"))?,
         );
     }
@@ -176,7 +249,7 @@ pub fn run(args: &Args) -> Result<()> {
     for &f in &args.vdp_hz {
         let n = experiments.len();
         experiments.push(van_der_pol(
-            &params,
+            params,
             n,
             start,
             f,
@@ -185,71 +258,28 @@ pub fn run(args: &Args) -> Result<()> {
             args.rate_hz,
         )?);
     }
-    let out = args
-        .out
-        .as_deref()
-        .ok_or_else(|| anyhow!("--out is required (the dataset folder)"))?;
-    let started = std::time::Instant::now();
-    let recordings = match &args.rod {
-        Some(text) => {
-            let rod = maglab_plant::Rod::parse(text).map_err(|e| anyhow!("--rod: {e}"))?;
-            let plant = maglab_plant::Plant::with_rod(&params, &rod, &effects, settings.rate_hz)
-                .map_err(|e| anyhow!(e))?;
-            bench::record_all_on(plant, &experiments, &settings)
-        }
-        None => bench::record_all(&params, &effects, &experiments, &settings),
-    }
-    .map_err(|e| anyhow!(e))?;
-    let mut recordings = recordings;
-    let paths = bench::write_dataset(out, &recordings).map_err(|e| anyhow!(e))?;
-    if args.undocumented {
-        std::fs::remove_file(out.join(maglab_dataset::dataset_info::FILE_NAME)).ok();
-    }
-    println!(
-        "wrote {} experiments to {} ({:.1} s of plant time at {} Hz in {:.1} s){}",
-        paths.len(),
-        out.display(),
-        recordings.iter().map(|r| r.t_s.len()).sum::<usize>() as f64 / args.rate_hz,
-        args.rate_hz,
-        started.elapsed().as_secs_f64(),
-        if args.undocumented {
-            "; start states not documented"
-        } else {
-            ""
-        }
-    );
-    recordings.clear();
-    let described: Vec<String> = effects.iter().map(|e| e.to_string()).collect();
-    println!(
-        "effects: {}",
-        if described.is_empty() {
-            "none".to_string()
-        } else {
-            described.join("; ")
-        }
-    );
-    if let Some(path) = &args.manifest {
-        let manifest = serde_json::json!({
-            "effects": effects.iter().map(|e| serde_json::json!({
-                "name": e.name(),
-                "parameters": e.spec.keys.iter().zip(&e.values).map(|(k, v)| (k.0.to_string(), *v)).collect::<std::collections::BTreeMap<_, _>>(),
-            })).collect::<Vec<_>>(),
-            "nuisances": {
-                "current_between_samples": args.current_between_samples,
-                "channel_skew_samples": args.skew_samples,
-                "sensor_offset_m": args.offset_m,
-                "start_state": args.start,
-                "documented": !args.undocumented,
-            },
-            "noise_m": args.noise_m,
-            "quantization_m": args.quantization_m,
-            "seed": args.seed,
-        });
-        std::fs::write(path, serde_json::to_string_pretty(&manifest)?)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        println!("wrote {}", path.display());
-    }
-    Ok(())
+    Ok(experiments)
+}
+
+/// `--manifest`: what the dataset holds (the effects with their parameters, the nuisances, the
+/// noise, the seed), for scoring a diagnosis against it.
+fn manifest(args: &Args, effects: &[Effect]) -> serde_json::Value {
+    serde_json::json!({
+        "effects": effects.iter().map(|e| serde_json::json!({
+            "name": e.name(),
+            "parameters": e.spec.keys.iter().zip(&e.values).map(|(k, v)| (k.0.to_string(), *v)).collect::<std::collections::BTreeMap<_, _>>(),
+        })).collect::<Vec<_>>(),
+        "nuisances": {
+            "current_between_samples": args.current_between_samples,
+            "channel_skew_samples": args.skew_samples,
+            "sensor_offset_m": args.offset_m,
+            "start_state": args.start,
+            "documented": !args.undocumented,
+        },
+        "noise_m": args.noise_m,
+        "quantization_m": args.quantization_m,
+        "seed": args.seed,
+    })
 }
 
 /// The current the dynamic-inverse tracking loop (`magctl::inverse::ControlLoop`) commands for a

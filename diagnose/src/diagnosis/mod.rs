@@ -176,6 +176,7 @@ use recording::Recording;
 use rules::MAX_SUBSTEPS_FACTOR;
 use scoring::Scorer;
 use singles::{Gaps, Stage};
+use std::collections::BTreeMap;
 
 /// Settings of the diagnosis.
 #[derive(Debug, Clone, PartialEq)]
@@ -491,20 +492,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         }
         _ => Vec::new(),
     };
-    let traces = (0..measurements.len())
-        .map(|k| Trace {
-            name: rec.infos[k].name.clone(),
-            rate_hz: rec.rate_hz,
-            current_a: measurements[k].current_a.clone(),
-            measured_m: measurements[k].displacement_m.clone(),
-            nominal_m: rec.nominal_preds[k].clone(),
-            augmented_m: verdict
-                .predictions
-                .get(&k)
-                .cloned()
-                .unwrap_or_else(|| rec.nominal_preds[k].clone()),
-        })
-        .collect();
+    let traces = traces(measurements, &rec, &verdict.predictions);
     let also_significant = also_significant(
         &ranked.iter().map(|r| &r.0).collect::<Vec<_>>(),
         &std::iter::once(name.as_str())
@@ -519,22 +507,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         (rec.noise_m, rec.range_m),
         coil_current_measured,
     );
-    if let Some(p) = &graded.partly {
-        reason = format!(
-            "{reason}; partly explained by {} ({:.0} ± {:.0} % of the gap's energy, at least \
-             {:.0} % in every held-out band), the rest unexplained",
-            p.effect,
-            100.0 * p.share_of_gap,
-            100.0 * p.share_spread,
-            100.0 * p.lowest_band_share
-        );
-    }
-    if let [a, b] = graded.either.as_slice() {
-        reason = format!(
-            "{reason}; {a} or {b}: {}, these experiments cannot separate them",
-            graded.either_reason
-        );
-    }
+    reason = with_grade(reason, &graded);
     let dynamic_count = rec.infos.iter().filter(|i| !i.quasi_static).count();
     let unmeasured_loops_warning = coverage::warning(&unmeasured_loops, dynamic_count);
     if unmeasured_loops_warning.is_some() && name != "none" {
@@ -555,12 +528,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         .chain(additional_effects.iter().cloned())
         .chain(graded.partly.iter().map(|p| p.effect.clone()))
         .collect();
-    let also_listed: Vec<String> = ambiguous_with
-        .iter()
-        .chain(&equal_on_training)
-        .cloned()
-        .chain(also_significant.iter().map(|a| a.effect.clone()))
-        .collect();
+    let also_listed = listed_beside(&ambiguous_with, &equal_on_training, &also_significant);
     let advice = what_to_record(
         &named,
         &graded,
@@ -622,6 +590,65 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         },
         traces,
     }
+}
+
+/// Each experiment's measured, nominal and verdict-model traces for the plots
+/// (`predictions`: the verdict's model, by experiment; the nominal model's where it has none).
+fn traces(
+    measurements: &[Measurement],
+    rec: &Recording,
+    predictions: &BTreeMap<usize, Vec<f64>>,
+) -> Vec<Trace> {
+    (0..measurements.len())
+        .map(|k| Trace {
+            name: rec.infos[k].name.clone(),
+            rate_hz: rec.rate_hz,
+            current_a: measurements[k].current_a.clone(),
+            measured_m: measurements[k].displacement_m.clone(),
+            nominal_m: rec.nominal_preds[k].clone(),
+            augmented_m: predictions
+                .get(&k)
+                .cloned()
+                .unwrap_or_else(|| rec.nominal_preds[k].clone()),
+        })
+        .collect()
+}
+
+/// The verdict's `reason` with what its grade adds: the share a partly explaining effect
+/// accounts for, and why "X or Y" cannot be separated.
+fn with_grade(mut reason: String, graded: &grade::Graded) -> String {
+    if let Some(p) = &graded.partly {
+        reason = format!(
+            "{reason}; partly explained by {} ({:.0} ± {:.0} % of the gap's energy, at least \
+             {:.0} % in every held-out band), the rest unexplained",
+            p.effect,
+            100.0 * p.share_of_gap,
+            100.0 * p.share_spread,
+            100.0 * p.lowest_band_share
+        );
+    }
+    if let [a, b] = graded.either.as_slice() {
+        reason = format!(
+            "{reason}; {a} or {b}: {}, these experiments cannot separate them",
+            graded.either_reason
+        );
+    }
+    reason
+}
+
+/// The effects the report lists beside the verdict: as good on the held-out experiments, as
+/// good on the training ones, significant as well.
+fn listed_beside(
+    ambiguous_with: &[String],
+    equal_on_training: &[String],
+    also_significant: &[AlsoSignificant],
+) -> Vec<String> {
+    ambiguous_with
+        .iter()
+        .chain(equal_on_training)
+        .cloned()
+        .chain(also_significant.iter().map(|a| a.effect.clone()))
+        .collect()
 }
 
 /// Step 10, the advice: the loops the masses lack first, then for each pair of candidates the

@@ -2,7 +2,7 @@
 //! whose parameters are not the baked ones: the bench workflow, end to end, under QEMU.
 
 use super::measurement::identification_programme;
-use super::{run_once, HilRun};
+use super::{run_once, HilResult, HilRun};
 use crate::qemu::firmware::build_bin;
 use crate::util::{run_checked, Ctx};
 use anyhow::{ensure, Context, Result};
@@ -45,139 +45,41 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
     let data = base.join("data");
     let _ = std::fs::remove_dir_all(&data);
     let programme = Arc::new(identification_programme()?);
+    let on_plant = |dir: &str| {
+        let mut run = HilRun::new(base.join(dir));
+        run.plant_params = Some(plant.clone());
+        run.plant_rod = Some(PLANT_ROD.into());
+        run
+    };
     // The firmware plays its compiled-in programme and logs the record as the NUCLEO
     // measurement image does (defmt `MEAS` lines); `crate::record` writes the dataset from it.
-    let mut m = HilRun::new(base.join("measure"));
-    m.plant_params = Some(plant.clone());
-    m.plant_rod = Some(PLANT_ROD.into());
+    let mut m = on_plant("measure");
     m.plant_coil_current_noise_a = Some(MONITOR_NOISE_A);
     m.measure_local = Some(data.clone());
     let r = run_once(ctx, elf, Some(exe), &m)?;
     let mut s = r.summary.clone();
-    // The streamed programme (R frames, the protocol's measurement mode) drives the same
-    // firmware identically: its first ticks, frame for frame.
-    let mut streamed = HilRun::new(base.join("measure_streamed"));
-    streamed.plant_params = Some(plant.clone());
-    streamed.plant_rod = Some(PLANT_ROD.into());
+    let mut streamed = on_plant("measure_streamed");
     streamed.plant_coil_current_noise_a = Some(MONITOR_NOISE_A);
     streamed.measure = Some((programme.clone(), base.join("unused")));
     streamed.measure_ticks = Some(STREAMED_CHECK_TICKS);
     let r2 = run_once(ctx, elf, Some(exe), &streamed)?;
-    let n = STREAMED_CHECK_TICKS as usize;
-    ensure!(
-        r2.frames.len() >= n && r.frames.len() >= n,
-        "streamed check: {} / {} frames",
-        r2.frames.len(),
-        r.frames.len()
-    );
-    for (k, (a, b)) in r.frames.iter().zip(&r2.frames).take(n).enumerate() {
-        ensure!(
-            a.value.to_bits() == b.value.to_bits()
-                && a.desired_m.to_bits() == b.desired_m.to_bits()
-                && a.flags == b.flags,
-            "tick {k}: the compiled-in programme commands {} A (reading {} m), the streamed one {} A ({} m)",
-            a.value,
-            a.desired_m,
-            b.value,
-            b.desired_m
-        );
-    }
-    writeln!(
-        s,
-        "  streamed programme (R frames): its first {n} ticks command the same currents and read the same samples, bit for bit"
-    )?;
+    writeln!(s, "{}", same_commands(&r, &r2)?)?;
     let identified = base.join("identified.json");
-    let started = Instant::now();
-    let mut id = Command::new(exe);
-    id.arg("identify")
-        .arg(&data)
-        .arg("-o")
-        .arg(&identified)
-        .arg("--params")
-        .arg(ctx.root.join(BASE_PARAMS))
-        .arg("--plot-dir")
-        .arg(base.join("plots"))
-        .current_dir(&ctx.root);
-    run_checked(id)?;
-    let identify_s = started.elapsed().as_secs_f64();
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&identified)?)?;
-    // The coil current went through the firmware's record into the dataset, and the
-    // identification judged the amplifier on it (the plant's follows the command: ruled out).
-    let judgement = &json["provenance"]["coil_current"]["judgement"];
-    ensure!(
-        judgement["amplifier_named"] == serde_json::Value::Bool(false),
-        "the identification did not judge the amplifier on the recorded coil current \
-         (provenance.coil_current: {judgement})"
-    );
-    writeln!(
-        s,
-        "  coil current recorded (plant's monitor, {MONITOR_NOISE_A} A noise, through the firmware's record): {}",
-        judgement["reason"].as_str().unwrap_or("?")
-    )?;
-    let truth: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(ctx.root.join(&plant))?)?;
-    let nominal: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(ctx.root.join(BASE_PARAMS))?)?;
+    let (json, identify_s) = identify(ctx, exe, &data, &identified, base)?;
+    writeln!(s, "{}", coil_current_judged(&json)?)?;
     writeln!(
         s,
         "end to end on a {PLANT_ROD} rod: {} ticks measured ({} experiments), identify {identify_s:.0} s",
         programme.current_a.len(),
         programme.experiments.len()
     )?;
+    let (table, worst_constant) = constants_table(ctx, &json, &plant)?;
+    s.push_str(&table);
     writeln!(
         s,
-        "  constant             nominal (baked)   plant   identified"
+        "{}",
+        diagnose_measured(ctx, exe, &identified, &data, base)?
     )?;
-    let mut worst_constant = 0.0f64;
-    for key in ["eddy_resistance_ohm", "damping_ratio", "resonance_hz"] {
-        let v = |j: &serde_json::Value| j["actuator"][key].as_f64().unwrap_or(f64::NAN);
-        let error = v(&json) / v(&truth) - 1.0;
-        // NaN (a missing field) fails the check below.
-        worst_constant = worst_constant.max(if error.is_nan() {
-            f64::INFINITY
-        } else {
-            error.abs()
-        });
-        writeln!(
-            s,
-            "  {key:<20} {:>15.4} {:>7.4} {:>12.4} ({:+.1} %)",
-            v(&nominal),
-            v(&truth),
-            v(&json),
-            100.0 * error
-        )?;
-    }
-    // Diagnose the measured folder with the identified file: split at the coil (the amplifier
-    // on the recorded current, the rest of the library on it against the displacement), a
-    // plant without effects must come out `none`.
-    let report = base.join("diagnosis");
-    let mut diagnose = Command::new(exe);
-    diagnose
-        .arg("diagnose")
-        .arg("--params")
-        .arg(&identified)
-        .arg("-o")
-        .arg(&report)
-        .arg(&data)
-        .current_dir(&ctx.root);
-    let started = Instant::now();
-    run_checked(diagnose)?;
-    let d: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(report.join("diagnosis.json"))?)?;
-    writeln!(
-        s,
-        "  maglab diagnose --params identified.json on the measured folder: {} (grade {}; amplifier named on the coil current: {}), {:.0} s",
-        d["verdict"].as_str().unwrap_or("?"),
-        d["grade"].as_str().unwrap_or("?"),
-        d["coil_current"]["amplifier_named"],
-        started.elapsed().as_secs_f64()
-    )?;
-    ensure!(
-        d["verdict"] == "none" && d["coil_current"]["amplifier_named"] == false,
-        "the measured folder of a plant without effects diagnosed as `{}`: {}",
-        d["verdict"].as_str().unwrap_or("?"),
-        d["verdict_reason"].as_str().unwrap_or("?")
-    );
     // Re-bake: the same firmware built with the base and with the identified file, each kept as
     // a copy; then the default build again, which the later runs use.
     let base_elf = bake(
@@ -189,41 +91,28 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
     let identified_elf = bake(ctx, elf, &identified, &base.join("firmware-hil-identified"))?;
     run_checked(build_bin(ctx, "firmware-hil", FEATURES))?;
     let mut rms = [0.0f64; 2];
-    let mut closed_loop_rms = f64::NAN;
-    for (k, (name, fw)) in [
-        ("default", base_elf.clone()),
-        ("identified", identified_elf),
-    ]
-    .into_iter()
-    .enumerate()
+    for (k, (name, fw)) in [("default", &base_elf), ("identified", &identified_elf)]
+        .into_iter()
+        .enumerate()
     {
         // Feedforward only: this compares the models (the feedback would hide their error).
-        let mut t = HilRun::new(base.join(format!("track_{name}")));
-        t.plant_params = Some(plant.clone());
-        t.plant_rod = Some(PLANT_ROD.into());
+        let mut t = on_plant(&format!("track_{name}"));
         t.elf = Some(fw.clone());
         t.feedback = false;
-        let r = run_once(ctx, elf, Some(exe), &t)?;
-        let (a, b, _) = r.tracking.context("no tracking error")?;
+        let (a, b) = tracking_error(ctx, elf, exe, &t)?;
         rms[k] = a;
         writeln!(
             s,
             "  tracking on that plant, feedforward, firmware baked with the {name} parameters: RMS {a:.3} %, max {b:.2} % of peak-to-peak"
         )?;
-        if name == "identified" {
-            let mut t = HilRun::new(base.join("track_identified_feedback"));
-            t.plant_params = Some(plant.clone());
-            t.plant_rod = Some(PLANT_ROD.into());
-            t.elf = Some(fw);
-            let r = run_once(ctx, elf, Some(exe), &t)?;
-            let (a, b, _) = r.tracking.context("no tracking error")?;
-            closed_loop_rms = a;
-            writeln!(
-                s,
-                "  the same with the parameter file's feedback on: RMS {a:.3} %, max {b:.2} % of peak-to-peak (whole run, learning included)"
-            )?;
-        }
     }
+    let mut t = on_plant("track_identified_feedback");
+    t.elf = Some(identified_elf);
+    let (closed_loop_rms, closed_loop_max) = tracking_error(ctx, elf, exe, &t)?;
+    writeln!(
+        s,
+        "  the same with the parameter file's feedback on: RMS {closed_loop_rms:.3} %, max {closed_loop_max:.2} % of peak-to-peak (whole run, learning included)"
+    )?;
     writeln!(
         s,
         "  default / identified (feedforward): {:.1}x",
@@ -246,6 +135,168 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
         rms[0] / rms[1]
     );
     Ok(s)
+}
+
+/// The streamed programme (R frames, the protocol's measurement mode) drives the same firmware
+/// as the compiled-in one (`compiled`): its first [`STREAMED_CHECK_TICKS`] command frames,
+/// bit for bit. Returns the summary line.
+fn same_commands(compiled: &HilResult, streamed: &HilResult) -> Result<String> {
+    let n = STREAMED_CHECK_TICKS as usize;
+    ensure!(
+        streamed.frames.len() >= n && compiled.frames.len() >= n,
+        "streamed check: {} / {} frames",
+        streamed.frames.len(),
+        compiled.frames.len()
+    );
+    for (k, (a, b)) in compiled
+        .frames
+        .iter()
+        .zip(&streamed.frames)
+        .take(n)
+        .enumerate()
+    {
+        ensure!(
+            a.value.to_bits() == b.value.to_bits()
+                && a.desired_m.to_bits() == b.desired_m.to_bits()
+                && a.flags == b.flags,
+            "tick {k}: the compiled-in programme commands {} A (reading {} m), the streamed one {} A ({} m)",
+            a.value,
+            a.desired_m,
+            b.value,
+            b.desired_m
+        );
+    }
+    Ok(format!(
+        "  streamed programme (R frames): its first {n} ticks command the same currents and read the same samples, bit for bit"
+    ))
+}
+
+/// `maglab identify` on the measured folder `data` from [`BASE_PARAMS`] into `identified`:
+/// the file as JSON and how long it took, s.
+fn identify(
+    ctx: &Ctx,
+    exe: &Path,
+    data: &Path,
+    identified: &Path,
+    base: &Path,
+) -> Result<(serde_json::Value, f64)> {
+    let started = Instant::now();
+    let mut id = Command::new(exe);
+    id.arg("identify")
+        .arg(data)
+        .arg("-o")
+        .arg(identified)
+        .arg("--params")
+        .arg(ctx.root.join(BASE_PARAMS))
+        .arg("--plot-dir")
+        .arg(base.join("plots"))
+        .current_dir(&ctx.root);
+    run_checked(id)?;
+    let identify_s = started.elapsed().as_secs_f64();
+    let json = serde_json::from_str(&std::fs::read_to_string(identified)?)?;
+    Ok((json, identify_s))
+}
+
+/// The coil current went through the firmware's record into the dataset, and the
+/// identification judged the amplifier on it (the plant's follows the command: ruled out).
+/// Returns the summary line.
+fn coil_current_judged(identified: &serde_json::Value) -> Result<String> {
+    let judgement = &identified["provenance"]["coil_current"]["judgement"];
+    ensure!(
+        judgement["amplifier_named"] == serde_json::Value::Bool(false),
+        "the identification did not judge the amplifier on the recorded coil current \
+         (provenance.coil_current: {judgement})"
+    );
+    Ok(format!(
+        "  coil current recorded (plant's monitor, {MONITOR_NOISE_A} A noise, through the firmware's record): {}",
+        judgement["reason"].as_str().unwrap_or("?")
+    ))
+}
+
+/// R_eddy, ξ, f0 of the base file, the plant (`plant`, relative to the repository) and the
+/// `identified` file, as table lines, and the largest relative error of the identified ones
+/// (infinite when one is missing).
+fn constants_table(
+    ctx: &Ctx,
+    identified: &serde_json::Value,
+    plant: &Path,
+) -> Result<(String, f64)> {
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(ctx.root.join(plant))?)?;
+    let nominal: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(ctx.root.join(BASE_PARAMS))?)?;
+    let mut s = String::new();
+    writeln!(
+        s,
+        "  constant             nominal (baked)   plant   identified"
+    )?;
+    let mut worst_constant = 0.0f64;
+    for key in ["eddy_resistance_ohm", "damping_ratio", "resonance_hz"] {
+        let v = |j: &serde_json::Value| j["actuator"][key].as_f64().unwrap_or(f64::NAN);
+        let error = v(identified) / v(&truth) - 1.0;
+        // NaN (a missing field) fails the tolerance check.
+        worst_constant = worst_constant.max(if error.is_nan() {
+            f64::INFINITY
+        } else {
+            error.abs()
+        });
+        writeln!(
+            s,
+            "  {key:<20} {:>15.4} {:>7.4} {:>12.4} ({:+.1} %)",
+            v(&nominal),
+            v(&truth),
+            v(identified),
+            100.0 * error
+        )?;
+    }
+    Ok((s, worst_constant))
+}
+
+/// Diagnoses the measured folder `data` with the `identified` file: split at the coil (the
+/// amplifier on the recorded current, the rest of the library on it against the
+/// displacement), a plant without effects must come out `none`. Returns the summary line.
+fn diagnose_measured(
+    ctx: &Ctx,
+    exe: &Path,
+    identified: &Path,
+    data: &Path,
+    base: &Path,
+) -> Result<String> {
+    let report = base.join("diagnosis");
+    let mut diagnose = Command::new(exe);
+    diagnose
+        .arg("diagnose")
+        .arg("--params")
+        .arg(identified)
+        .arg("-o")
+        .arg(&report)
+        .arg(data)
+        .current_dir(&ctx.root);
+    let started = Instant::now();
+    run_checked(diagnose)?;
+    let d: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("diagnosis.json"))?)?;
+    let line = format!(
+        "  maglab diagnose --params identified.json on the measured folder: {} (grade {}; amplifier named on the coil current: {}), {:.0} s",
+        d["verdict"].as_str().unwrap_or("?"),
+        d["grade"].as_str().unwrap_or("?"),
+        d["coil_current"]["amplifier_named"],
+        started.elapsed().as_secs_f64()
+    );
+    ensure!(
+        d["verdict"] == "none" && d["coil_current"]["amplifier_named"] == false,
+        "the measured folder of a plant without effects diagnosed as `{}`: {}",
+        d["verdict"].as_str().unwrap_or("?"),
+        d["verdict_reason"].as_str().unwrap_or("?")
+    );
+    Ok(line)
+}
+
+/// Runs `run` and returns its tracking error: RMS and largest, % of the peak-to-peak.
+fn tracking_error(ctx: &Ctx, elf: &Path, exe: &Path, run: &HilRun) -> Result<(f64, f64)> {
+    let r = run_once(ctx, elf, Some(exe), run)?;
+    let (rms, max, _) = r.tracking.context("no tracking error")?;
+    Ok((rms, max))
 }
 
 /// Builds the firmware with `params` baked in, in the firmware's own target directory (only
