@@ -407,6 +407,35 @@ mod grade {
         );
     }
 
+    /// A pair that names an eddy path on the commanded current alone says its term may be a
+    /// current loop's (the derivation in `grade`'s module docs); with the coil current
+    /// measured, or without an eddy path, it says nothing.
+    #[test]
+    fn a_pair_naming_a_term_another_effect_enters_says_so_without_the_coil_current() {
+        let pair = |a: &str, b: &str| [a.to_string(), b.to_string()];
+        let caveat = pair_caveat(
+            &pair("reversible_magnetization", "eddy_frequency_dependence"),
+            false,
+        )
+        .expect("an eddy path in a pair on the commanded current");
+        assert!(
+            caveat.contains("eddy_frequency_dependence term may be amplifier_bandwidth")
+                && caveat.contains("coil current"),
+            "{caveat}"
+        );
+        assert_eq!(
+            pair_caveat(
+                &pair("reversible_magnetization", "eddy_frequency_dependence"),
+                true
+            ),
+            None
+        );
+        assert_eq!(
+            pair_caveat(&pair("sensor_dynamics", "mechanical_load"), false),
+            None
+        );
+    }
+
     #[test]
     fn either_when_equal_on_training_and_apart_by_less_than_the_training_misfit() {
         // Noise 1e-7 m; the winner leaves 2e-7 m RMS on training: 3e-14 m² systematic energy.

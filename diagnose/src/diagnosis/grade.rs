@@ -32,7 +32,8 @@
 //! only current a dataset holds, an `eddy_frequency_dependence` verdict is therefore always
 //! "eddy_frequency_dependence or amplifier_bandwidth", and so is the part of a gap an eddy path
 //! explains when it explains only part ("partly explained by eddy_frequency_dependence or
-//! amplifier_bandwidth": the loop's share is the same term's); the measured coil current
+//! amplifier_bandwidth": the loop's share is the same term's), and a pair that names it says in
+//! its reason that the term may be the amplifier's ([`pair_caveat`]); the measured coil current
 //! separates them (the eddy path leaves it equal to the command, the loop does not). The
 //! converse does not hold: the library's amplifier (a lag on the command, independent of the
 //! rod) is not in the eddy candidate's form, and the fits separate the two.
@@ -176,6 +177,22 @@ pub fn grade(
             },
         },
     }
+}
+
+/// The caveat of a pair verdict (`named`: its effects) on a dataset without the coil current
+/// when one of them is a term another effect enters as well ([`SAME_TERM`]): the pair's fits
+/// needed that term, but what put it there may be the other effect, which no displacement
+/// record tells apart. The grade stays `pair`. `None` when no named effect is such a term or the
+/// coil current was measured.
+pub fn pair_caveat(named: &[String], coil_current_measured: bool) -> Option<String> {
+    let caveats: Vec<String> = named
+        .iter()
+        .filter_map(|n| {
+            same_term(n, coil_current_measured)
+                .map(|(other, why)| format!("the {n} term may be {other} instead: {why}"))
+        })
+        .collect();
+    (!caveats.is_empty()).then(|| caveats.join("; "))
 }
 
 /// The effect that enters the same term of the model as `effect` ([`SAME_TERM`]) and why, when

@@ -508,6 +508,14 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         coil_current_measured,
     );
     reason = with_grade(reason, &graded);
+    if graded.grade == grade::Grade::Pair {
+        let pair: Vec<String> = std::iter::once(name.clone())
+            .chain(additional_effects.iter().cloned())
+            .collect();
+        if let Some(caveat) = grade::pair_caveat(&pair, coil_current_measured) {
+            reason = format!("{reason}; {caveat}");
+        }
+    }
     let dynamic_count = rec.infos.iter().filter(|i| !i.quasi_static).count();
     let unmeasured_loops_warning = coverage::warning(&unmeasured_loops, dynamic_count);
     if unmeasured_loops_warning.is_some() && name != "none" {
