@@ -378,12 +378,12 @@ fn where_section(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(
         s,
         "\nBranches (RMS, µm): ascending {}, descending {}; near reversal {}, mid-branch {}; early {}, late {}.\n",
-        um(w.ascending_rms_m),
-        um(w.descending_rms_m),
-        um(w.near_reversal_rms_m),
-        um(w.mid_branch_rms_m),
-        um(w.early_rms_m),
-        um(w.late_rms_m)
+        um(w.parts.ascending_rms_m),
+        um(w.parts.descending_rms_m),
+        um(w.parts.near_reversal_rms_m),
+        um(w.parts.mid_branch_rms_m),
+        um(w.parts.early_rms_m),
+        um(w.parts.late_rms_m)
     );
 }
 

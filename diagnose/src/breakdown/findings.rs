@@ -200,9 +200,10 @@ fn harmonics(w: &Where, noise_m: f64) -> Option<String> {
 /// Where in the records the residual is: ascending or descending branch, near reversals or
 /// mid-branch, early or late.
 fn parts(w: &Where) -> Vec<String> {
+    let p = &w.parts;
     let ratio = |a: f64, b: f64| a / b.max(1e-300);
     let mut out = Vec::new();
-    let ascending = ratio(w.ascending_rms_m, w.descending_rms_m);
+    let ascending = ratio(p.ascending_rms_m, p.descending_rms_m);
     out.push(if PARTS_EQUAL.contains(&ascending) {
         "Ascending and descending branches are equally affected.".into()
     } else {
@@ -213,23 +214,23 @@ fn parts(w: &Where) -> Vec<String> {
             } else {
                 "descending"
             },
-            w.ascending_rms_m.max(w.descending_rms_m),
-            w.ascending_rms_m.min(w.descending_rms_m)
+            p.ascending_rms_m.max(p.descending_rms_m),
+            p.ascending_rms_m.min(p.descending_rms_m)
         )
     });
-    let reversal = ratio(w.near_reversal_rms_m, w.mid_branch_rms_m);
+    let reversal = ratio(p.near_reversal_rms_m, p.mid_branch_rms_m);
     if reversal > NEAR_REVERSAL_RATIO {
         out.push(format!(
             "The residual concentrates near current reversals ({:.2e} m vs {:.2e} m mid-branch).",
-            w.near_reversal_rms_m, w.mid_branch_rms_m
+            p.near_reversal_rms_m, p.mid_branch_rms_m
         ));
     } else if reversal < MID_BRANCH_RATIO {
         out.push(format!(
             "The residual is largest mid-branch ({:.2e} m vs {:.2e} m near reversals).",
-            w.mid_branch_rms_m, w.near_reversal_rms_m
+            p.mid_branch_rms_m, p.near_reversal_rms_m
         ));
     }
-    let late = ratio(w.late_rms_m, w.early_rms_m);
+    let late = ratio(p.late_rms_m, p.early_rms_m);
     out.push(if PARTS_EQUAL.contains(&late) {
         "Early and late parts of each record agree equally (no drift).".into()
     } else {
@@ -237,8 +238,8 @@ fn parts(w: &Where) -> Vec<String> {
             "The residual {} during each record (last third {:.2e} m vs first third {:.2e} m): \
              a slow drift.",
             if late > 1.0 { "grows" } else { "shrinks" },
-            w.late_rms_m,
-            w.early_rms_m
+            p.late_rms_m,
+            p.early_rms_m
         )
     });
     out

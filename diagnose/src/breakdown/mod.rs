@@ -67,15 +67,24 @@ pub struct ExperimentBreakdown {
     pub dc_error_m: f64,
     /// Orders 2..=4.
     pub harmonics: Vec<Harmonic>,
-    /// RMS residual on the ascending / descending current branch, m.
+    /// The RMS residual by part of the record.
+    #[serde(flatten)]
+    pub parts: PartsRms,
+}
+
+/// The RMS residual in the parts of a record the breakdown compares, m (in `diagnosis.json`
+/// as fields of the experiment or dataset they belong to).
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct PartsRms {
+    /// On the ascending / descending current branch.
     pub ascending_rms_m: f64,
     /// See above.
     pub descending_rms_m: f64,
-    /// RMS residual near current reversals / mid-branch, m.
+    /// Near current reversals / mid-branch.
     pub near_reversal_rms_m: f64,
     /// See above.
     pub mid_branch_rms_m: f64,
-    /// RMS residual in the first / last third of the scored record, m.
+    /// In the first / last third of the scored record.
     pub early_rms_m: f64,
     /// See above.
     pub late_rms_m: f64,
@@ -111,18 +120,9 @@ pub struct Where {
     pub bands: Vec<BandSummary>,
     /// Frequency from which every band disagrees, Hz (`None`: the highest band agrees).
     pub gap_start_hz: Option<f64>,
-    /// Pooled over the dataset: ascending / descending branch RMS, m.
-    pub ascending_rms_m: f64,
-    /// See above.
-    pub descending_rms_m: f64,
-    /// Pooled near-reversal / mid-branch RMS, m.
-    pub near_reversal_rms_m: f64,
-    /// See above.
-    pub mid_branch_rms_m: f64,
-    /// Pooled early / late RMS, m.
-    pub early_rms_m: f64,
-    /// See above.
-    pub late_rms_m: f64,
+    /// The RMS residual by part, pooled over the dataset.
+    #[serde(flatten)]
+    pub parts: PartsRms,
     /// Plain-language summary, one finding per sentence.
     pub summary: Vec<String>,
 }
@@ -166,6 +166,17 @@ struct Parts {
 }
 
 impl Parts {
+    fn rms(&self) -> PartsRms {
+        PartsRms {
+            ascending_rms_m: self.ascending.rms(),
+            descending_rms_m: self.descending.rms(),
+            near_reversal_rms_m: self.near_reversal.rms(),
+            mid_branch_rms_m: self.mid_branch.rms(),
+            early_rms_m: self.early.rms(),
+            late_rms_m: self.late.rms(),
+        }
+    }
+
     fn merge(&mut self, o: Parts) {
         self.ascending.merge(o.ascending);
         self.descending.merge(o.descending);
@@ -206,12 +217,7 @@ pub fn analyse(
         experiments,
         bands,
         gap_start_hz,
-        ascending_rms_m: totals.ascending.rms(),
-        descending_rms_m: totals.descending.rms(),
-        near_reversal_rms_m: totals.near_reversal.rms(),
-        mid_branch_rms_m: totals.mid_branch.rms(),
-        early_rms_m: totals.early.rms(),
-        late_rms_m: totals.late.rms(),
+        parts: totals.rms(),
         summary: Vec::new(),
     };
     w.summary = findings::summarize(&w, noise_m);
@@ -274,12 +280,7 @@ fn experiment_breakdown(
         phase_error_deg: (cm / cy).arg().to_degrees(),
         dc_error_m: dc,
         harmonics,
-        ascending_rms_m: parts.ascending.rms(),
-        descending_rms_m: parts.descending.rms(),
-        near_reversal_rms_m: parts.near_reversal.rms(),
-        mid_branch_rms_m: parts.mid_branch.rms(),
-        early_rms_m: parts.early.rms(),
-        late_rms_m: parts.late.rms(),
+        parts: parts.rms(),
     };
     (experiment, parts)
 }

@@ -27,22 +27,46 @@ pub fn stats(mut v: Vec<f64>) -> (f64, f64, f64) {
     (v[0], median, v[n - 1])
 }
 
-/// Step 3: the instruction counter's calibration, each phase's instructions per interrupt
-/// against the goals, the capture CSV; returns the dynamic and static phases' records.
-pub(super) fn check_instructions(
-    out_dir: &Path,
-    records: &[Record],
-    firmware_lines: &[String],
-    summary: &mut String,
-) -> Result<(Vec<Record>, Vec<Record>)> {
-    // 3. instruction counts
+/// The capture's phases (`Record::phase`) after the calibration, in the order the firmware
+/// runs them.
+mod phase {
+    pub const DYNAMIC: u8 = 1;
+    pub const STATIC: u8 = 2;
+    pub const NAIVE: u8 = 3;
+    pub const MERGE: u8 = 4;
+    pub const EVERETT: u8 = 5;
+    pub const RELAY: u8 = 6;
+}
+
+/// The rows of the instructions table: phase and label, in the summary's order (ours, then the
+/// peers').
+const TABLE: [(u8, &str); 6] = [
+    (phase::DYNAMIC, "dynamic inverse, exact Preisach inverse:"),
+    (phase::STATIC, "static inverse,  exact Preisach inverse:"),
+    (
+        phase::MERGE,
+        "merge stress (dynamic inverse, staircase full, no trajectory step):",
+    ),
+    (phase::NAIVE, "dynamic inverse, naive (bisection):     "),
+    (
+        phase::EVERETT,
+        "dynamic inverse, Everett + bisection (openCFS-style):",
+    ),
+    (
+        phase::RELAY,
+        "dynamic inverse, relay grid + bisection (5,050 relays):",
+    ),
+];
+
+/// The calibration record (phase 0): two timed blocks that differ by exactly `index` nops take
+/// `index` × [`TICKS_PER_INSTRUCTION`] SysTick ticks more. The surrounding reads may differ by
+/// one instruction depending on code generation, and SysTick rounds to whole ticks: ±(1
+/// instruction + 1 tick) is accepted.
+fn check_calibration(records: &[Record], summary: &mut String) -> Result<()> {
     let cal = records
         .first()
         .filter(|r| r.phase == 0)
         .context("no calibration record")?;
-    // The two timed blocks differ by exactly `index` nops; the surrounding reads may differ by one
-    // instruction depending on code generation, and SysTick rounds to whole ticks: accept
-    // ±(1 instruction + 1 tick) around index × 25.6.
     let ticks_per_instruction = cal.ticks as f64 / cal.index as f64;
     let expected_ticks = cal.index as f64 * TICKS_PER_INSTRUCTION;
     say!(
@@ -54,102 +78,68 @@ pub(super) fn check_instructions(
         (cal.ticks as f64 - expected_ticks).abs() <= TICKS_PER_INSTRUCTION + 1.0,
         "SysTick does not count 25.6 ticks per instruction: {ticks_per_instruction}"
     );
+    Ok(())
+}
+
+/// (min, median, max) instructions per interrupt of `records`.
+fn instructions(records: &[Record]) -> (f64, f64, f64) {
+    stats(
+        records
+            .iter()
+            .map(|r| r.ticks as f64 / TICKS_PER_INSTRUCTION)
+            .collect(),
+    )
+}
+
+/// Step 3: the instruction counter's calibration, each phase's instructions per interrupt
+/// against the goals, the capture CSV; returns the dynamic and static phases' records.
+pub(super) fn check_instructions(
+    out_dir: &Path,
+    records: &[Record],
+    firmware_lines: &[String],
+    summary: &mut String,
+) -> Result<(Vec<Record>, Vec<Record>)> {
+    check_calibration(records, summary)?;
     let rate = BAKED_PARAMETERS.control.sample_rate_hz as f64;
-    let phase = |k: u8| {
+    let of_phase = |k: u8| {
         records
             .iter()
             .filter(|r| r.phase == k)
             .copied()
             .collect::<Vec<_>>()
     };
-    let (dynamic, stat, naive, merge) = (phase(1), phase(2), phase(3), phase(4));
-    let (everett, relay) = (phase(5), phase(6));
+    let (dynamic, stat) = (of_phase(phase::DYNAMIC), of_phase(phase::STATIC));
     ensure!(
         dynamic.len() as f64 >= rate && stat.len() as f64 >= rate,
         "less than 1 s of control time captured"
     );
-    ensure!(!naive.is_empty(), "no naive-phase records");
-    ensure!(!merge.is_empty(), "no merge-stress records");
-    ensure!(
-        !everett.is_empty() && !relay.is_empty(),
-        "no records of the peer baselines"
-    );
-    let instr = |rs: &[Record]| {
-        stats(
-            rs.iter()
-                .map(|r| r.ticks as f64 / TICKS_PER_INSTRUCTION)
-                .collect(),
-        )
-    };
-    let (d, s, n, m) = (instr(&dynamic), instr(&stat), instr(&naive), instr(&merge));
-    let (e, r) = (instr(&everett), instr(&relay));
     say!(summary, "instructions per interrupt (min / median / max):");
-    say!(
-        summary,
-        "  dynamic inverse, exact Preisach inverse: {:.0} / {:.0} / {:.0}  ({} interrupts)",
-        d.0,
-        d.1,
-        d.2,
-        dynamic.len()
-    );
-    say!(
-        summary,
-        "  static inverse,  exact Preisach inverse: {:.0} / {:.0} / {:.0}  ({} interrupts)",
-        s.0,
-        s.1,
-        s.2,
-        stat.len()
-    );
-    say!(
-        summary,
-        "  merge stress (dynamic inverse, staircase full, no trajectory step): {:.0} / {:.0} / {:.0}  ({} interrupts)",
-        m.0,
-        m.1,
-        m.2,
-        merge.len()
-    );
-    say!(
-        summary,
-        "  dynamic inverse, naive (bisection):      {:.0} / {:.0} / {:.0}  ({} interrupts)",
-        n.0,
-        n.1,
-        n.2,
-        naive.len()
-    );
-    say!(
-        summary,
-        "  dynamic inverse, Everett + bisection (openCFS-style): {:.0} / {:.0} / {:.0}  ({} interrupts)",
-        e.0,
-        e.1,
-        e.2,
-        everett.len()
-    );
-    say!(
-        summary,
-        "  dynamic inverse, relay grid + bisection (5,050 relays): {:.0} / {:.0} / {:.0}  ({} interrupts)",
-        r.0,
-        r.1,
-        r.2,
-        relay.len()
-    );
-    say!(
-        summary,
-        "  Everett bisection / ours: median {:.1}x, worst case {:.1}x",
-        e.1 / d.1,
-        e.2 / d.2
-    );
-    say!(
-        summary,
-        "  relay grid / ours: median {:.0}x, worst case {:.0}x",
-        r.1 / d.1,
-        r.2 / d.2
-    );
-    say!(
-        summary,
-        "  naive (strawman) / ours: median {:.0}x, worst case {:.0}x",
-        n.1 / d.1,
-        n.2 / d.2
-    );
+    let mut counted = std::collections::BTreeMap::new();
+    for (k, label) in TABLE {
+        let rs = of_phase(k);
+        ensure!(!rs.is_empty(), "no records of phase {k} ({label})");
+        let (lo, median, hi) = instructions(&rs);
+        say!(
+            summary,
+            "  {label} {lo:.0} / {median:.0} / {hi:.0}  ({} interrupts)",
+            rs.len()
+        );
+        counted.insert(k, (lo, median, hi));
+    }
+    let ours = counted[&phase::DYNAMIC];
+    for (k, name, digits) in [
+        (phase::EVERETT, "Everett bisection", 1),
+        (phase::RELAY, "relay grid", 0),
+        (phase::NAIVE, "naive (strawman)", 0),
+    ] {
+        let peer = counted[&k];
+        say!(
+            summary,
+            "  {name} / ours: median {:.digits$}x, worst case {:.digits$}x",
+            peer.1 / ours.1,
+            peer.2 / ours.2
+        );
+    }
     say!(summary, "dynamic-inverse interrupt by stage (2,000 steps in thread mode, instructions min / mean / max):");
     for line in firmware_lines
         .iter()
@@ -164,22 +154,21 @@ pub(super) fn check_instructions(
         overruns == 0 && faults == 0,
         "overruns or faults in the QEMU run"
     );
-
     capture::write_csv(out_dir, records, rate)?;
     say!(
         summary,
         "wrote out/qemu/capture.csv ({} rows)",
         records.len() - 1
     );
+    let stat_worst = counted[&phase::STATIC].2;
     ensure!(
-        d.2 <= MAX_INSTRUCTIONS && s.2 <= MAX_INSTRUCTIONS,
+        ours.2 <= MAX_INSTRUCTIONS && stat_worst <= MAX_INSTRUCTIONS,
         "worst case above {MAX_INSTRUCTIONS} instructions"
     );
+    let merge_worst = counted[&phase::MERGE].2;
     ensure!(
-        m.2 <= MAX_MERGE_INSTRUCTIONS,
-        "merge-stress worst case {:.0} above {MAX_MERGE_INSTRUCTIONS} instructions",
-        m.2
+        merge_worst <= MAX_MERGE_INSTRUCTIONS,
+        "merge-stress worst case {merge_worst:.0} above {MAX_MERGE_INSTRUCTIONS} instructions"
     );
-
     Ok((dynamic, stat))
 }
