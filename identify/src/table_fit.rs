@@ -27,20 +27,7 @@ pub fn fit_table(
     auto_smoothness: bool,
     options: &crate::fit::FitOptions,
 ) -> Result<(PreisachModel, crate::fit::FitResult), crate::fit::FitError> {
-    let range_grid = match range {
-        Some((lo, hi)) => Grid::uniform(lo, hi),
-        None => {
-            let (lo, hi) = table.input_range();
-            if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
-                return Err(crate::fit::FitError(format!(
-                    "{}: column `{}` has no variation: no hysteresis to fit",
-                    table.path.display(),
-                    spec.input
-                )));
-            }
-            Grid::around(lo, hi, margin)
-        }
-    };
+    let range_grid = range_grid(table, spec, range, margin)?;
     let experiments: Vec<crate::design::Experiment<'_>> = table
         .series
         .iter()
@@ -53,7 +40,82 @@ pub fn fit_table(
             weights: None,
         })
         .collect();
-    // (the choices made are recorded in the provenance's `grid_lines` and `options`)
+    let (lines, options, validation) =
+        choose_lines_and_smoothness(&range_grid, &experiments, lines, auto_smoothness, options)?;
+    let options = &options;
+    let grid = crate::lines::choose_grid(range_grid.h_min, range_grid.h_max, lines, &experiments);
+    let result = crate::fit::fit(&grid, &experiments, None, options)?;
+    let provenance = provenance(
+        table,
+        spec,
+        (initial, closed_loops_periodic),
+        (range, margin),
+        (lines, validation.as_deref()),
+        options,
+        &result,
+    );
+    let model = PreisachModel {
+        format: FORMAT.into(),
+        input_column: spec.input.clone(),
+        output_column: spec.output.clone(),
+        levels: crate::LEVELS,
+        h_min: grid.h_min,
+        h_max: grid.h_max,
+        grid_lines: grid.lines.map(|l| l.to_vec()),
+        weights: result.weights.clone(),
+        offset: result.offset,
+        slope: result.slope,
+        reversible_slopes: options
+            .reversible
+            .is_piecewise()
+            .then(|| result.reversible_slopes.clone()),
+        initial_state: initial,
+        closed_loops_periodic,
+        provenance,
+    };
+    Ok((model, result))
+}
+
+/// The uniform grid the lines are chosen in: `range` if given, else the input range of the
+/// whole table (all rows, selected or not, so that prediction on the other rows stays inside
+/// the grid) widened by `margin` on each side. An input without variation is an error naming
+/// the column.
+fn range_grid(
+    table: &crate::columns::Table,
+    spec: &crate::columns::ColumnSpec,
+    range: Option<(f64, f64)>,
+    margin: f64,
+) -> Result<Grid, crate::fit::FitError> {
+    if let Some((lo, hi)) = range {
+        return Ok(Grid::uniform(lo, hi));
+    }
+    let (lo, hi) = table.input_range();
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return Err(crate::fit::FitError(format!(
+            "{}: column `{}` has no variation: no hysteresis to fit",
+            table.path.display(),
+            spec.input
+        )));
+    }
+    Ok(Grid::around(lo, hi, margin))
+}
+
+/// The grid lines and the fit options with their smoothness: `lines` and `options` as given
+/// when each is fixed, else chosen by [`validate_choices`] (with every candidate's score).
+fn choose_lines_and_smoothness(
+    range_grid: &Grid,
+    experiments: &[crate::design::Experiment<'_>],
+    lines: crate::lines::LineChoice,
+    auto_smoothness: bool,
+    options: &crate::fit::FitOptions,
+) -> Result<
+    (
+        crate::lines::LineChoice,
+        crate::fit::FitOptions,
+        Option<Vec<Candidate>>,
+    ),
+    crate::fit::FitError,
+> {
     let line_candidates: &[crate::lines::LineChoice] = match lines {
         crate::lines::LineChoice::Auto => &[
             crate::lines::LineChoice::Uniform,
@@ -66,29 +128,39 @@ pub fn fit_table(
     } else {
         std::slice::from_ref(&options.smoothness)
     };
-    let (lines, options, validation) = if line_candidates.len() * smoothness_candidates.len() > 1 {
-        let (choice, smoothness, scores) = validate_choices(
-            &range_grid,
-            &experiments,
-            options,
-            line_candidates,
-            smoothness_candidates,
-        )?;
-        (
-            choice,
-            crate::fit::FitOptions {
-                smoothness,
-                ..*options
-            },
-            Some(scores),
-        )
-    } else {
-        (line_candidates[0], *options, None)
-    };
-    let options = &options;
-    let grid = crate::lines::choose_grid(range_grid.h_min, range_grid.h_max, lines, &experiments);
-    let result = crate::fit::fit(&grid, &experiments, None, options)?;
-    let provenance = serde_json::json!({
+    if line_candidates.len() * smoothness_candidates.len() == 1 {
+        return Ok((line_candidates[0], *options, None));
+    }
+    let (choice, smoothness, scores) = validate_choices(
+        range_grid,
+        experiments,
+        options,
+        line_candidates,
+        smoothness_candidates,
+    )?;
+    Ok((
+        choice,
+        crate::fit::FitOptions {
+            smoothness,
+            ..*options
+        },
+        Some(scores),
+    ))
+}
+
+/// The model's provenance: the source table and its experiments, the rows fitted, each
+/// experiment's start, the grid's range and lines with the validation that chose them, the
+/// options and the fit's figures.
+fn provenance(
+    table: &crate::columns::Table,
+    spec: &crate::columns::ColumnSpec,
+    (initial, closed_loops_periodic): (StartState, bool),
+    (range, margin): (Option<(f64, f64)>, f64),
+    (lines, validation): (crate::lines::LineChoice, Option<&[Candidate]>),
+    options: &crate::fit::FitOptions,
+    result: &crate::fit::FitResult,
+) -> serde_json::Value {
+    serde_json::json!({
         "source": "maglab preisach-fit",
         "file": table.path.display().to_string(),
         "experiments": table.series.iter().map(|s| serde_json::json!({
@@ -102,7 +174,7 @@ pub fn fit_table(
         "group_column": spec.group,
         "range_margin": if range.is_some() { None } else { Some(margin) },
         "grid_lines": lines.name(),
-        "validation": validation.as_ref().map(|scores| scores.iter().map(|(c, smoothness, rms)| {
+        "validation": validation.map(|scores| scores.iter().map(|(c, smoothness, rms)| {
             serde_json::json!({"lines": c.name(), "smoothness": smoothness, "held_back_rms": rms})
         }).collect::<Vec<_>>()),
         "options": {
@@ -126,27 +198,7 @@ pub fn fit_table(
                 let (i, j) = crate::cell_of_index(k); [i, j]
             }).collect::<Vec<_>>(),
         },
-    });
-    let model = PreisachModel {
-        format: FORMAT.into(),
-        input_column: spec.input.clone(),
-        output_column: spec.output.clone(),
-        levels: crate::LEVELS,
-        h_min: grid.h_min,
-        h_max: grid.h_max,
-        grid_lines: grid.lines.map(|l| l.to_vec()),
-        weights: result.weights.clone(),
-        offset: result.offset,
-        slope: result.slope,
-        reversible_slopes: options
-            .reversible
-            .is_piecewise()
-            .then(|| result.reversible_slopes.clone()),
-        initial_state: initial,
-        closed_loops_periodic,
-        provenance,
-    };
-    Ok((model, result))
+    })
 }
 
 /// The smoothness weights `auto` smoothness chooses from (see [`crate::fit`]: `1e-6` weighs a

@@ -176,8 +176,11 @@ fn started_plant(
 struct Instruments {
     scale: SensorScale,
     delay_s: f64,
-    noise_m: f64,
-    noise: Normal<f64>,
+    /// The sensor's noise σ, m.
+    sensor_noise_m: f64,
+    sensor_noise: Normal<f64>,
+    /// The sensor noise's stream: `--seed`'s, after `--prior-history` drew from it.
+    sensor_rng: rand::rngs::StdRng,
     metres: bool,
     /// The monitor's noise σ, A (`None`: no monitor).
     monitor_noise_a: Option<f64>,
@@ -188,13 +191,19 @@ struct Instruments {
 }
 
 impl Instruments {
-    fn new(args: &Args, loaded: &params_io::LoadedParams) -> Result<Self> {
+    /// The instruments of `args`; `sensor_rng` the stream of the sensor's noise.
+    fn new(
+        args: &Args,
+        loaded: &params_io::LoadedParams,
+        sensor_rng: rand::rngs::StdRng,
+    ) -> Result<Self> {
         Ok(Self {
             scale: SensorScale::new(&loaded.params.sensor),
             delay_s: loaded.file.sensor.sample_delay_s,
-            noise_m: args.noise_m,
-            noise: Normal::new(0.0, args.noise_m.max(f64::MIN_POSITIVE))
+            sensor_noise_m: args.noise_m,
+            sensor_noise: Normal::new(0.0, args.noise_m.max(f64::MIN_POSITIVE))
                 .map_err(|e| anyhow::anyhow!("noise: {e}"))?,
+            sensor_rng,
             metres: args.metres,
             monitor_noise_a: args.coil_current_noise_a,
             monitor_noise: Normal::new(
@@ -208,12 +217,11 @@ impl Instruments {
         })
     }
 
-    /// The sensor's reading now: `(the frame's sample, the reading in m, its ADC count)`; the
-    /// noise from `rng`.
-    fn sample(&self, plant: &Plant, rng: &mut rand::rngs::StdRng) -> (Sample, f64, u32) {
+    /// The sensor's reading now: `(the frame's sample, the reading in m, its ADC count)`.
+    fn sample(&mut self, plant: &Plant) -> (Sample, f64, u32) {
         let mut y = plant.sensor_at(plant.time_s() - self.delay_s);
-        if self.noise_m > 0.0 {
-            y += self.noise.sample(rng);
+        if self.sensor_noise_m > 0.0 {
+            y += self.sensor_noise.sample(&mut self.sensor_rng);
         }
         if self.metres {
             (Sample::Metres(y as f32), y, 0)
@@ -279,9 +287,9 @@ pub fn run(args: &Args) -> Result<()> {
     let (rate_hz, ticks) = await_begin(&mut input)?;
     let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
     let mut plant = started_plant(args, &loaded, (&effects, start), rate_hz, &mut rng)?;
-    let mut instruments = Instruments::new(args, &loaded)?;
+    let mut instruments = Instruments::new(args, &loaded, rng)?;
     let mut log = open_log(args.log.as_deref())?;
-    let (mut sample, mut sample_m, mut count) = instruments.sample(&plant, &mut rng);
+    let (mut sample, mut sample_m, mut count) = instruments.sample(&plant);
     send(&mut output, 0, sample, instruments.coil_current_a(&plant))?;
     let mut tick: u32 = 0;
     loop {
@@ -326,7 +334,7 @@ pub fn run(args: &Args) -> Result<()> {
             )?;
         }
         tick += 1;
-        (sample, sample_m, count) = instruments.sample(&plant, &mut rng);
+        (sample, sample_m, count) = instruments.sample(&plant);
         if tick < ticks {
             send(
                 &mut output,

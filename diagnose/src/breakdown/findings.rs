@@ -52,7 +52,7 @@ pub(super) fn summarize(w: &Where, noise_m: f64) -> Vec<String> {
     out.push(amplitude(w, first, last, harmonic));
     out.push(dc_level(w));
     out.extend(harmonics(w, noise_m));
-    out.extend(parts(w));
+    out.extend(record_parts(w));
     out
 }
 
@@ -199,7 +199,7 @@ fn harmonics(w: &Where, noise_m: f64) -> Option<String> {
 
 /// Where in the records the residual is: ascending or descending branch, near reversals or
 /// mid-branch, early or late.
-fn parts(w: &Where) -> Vec<String> {
+fn record_parts(w: &Where) -> Vec<String> {
     let p = &w.parts;
     let ratio = |a: f64, b: f64| a / b.max(1e-300);
     let mut out = Vec::new();

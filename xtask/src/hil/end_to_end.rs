@@ -63,7 +63,7 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
     streamed.measure = Some((programme.clone(), base.join("unused")));
     streamed.measure_ticks = Some(STREAMED_CHECK_TICKS);
     let r2 = run_once(ctx, elf, Some(exe), &streamed)?;
-    writeln!(s, "{}", same_commands(&r, &r2)?)?;
+    writeln!(s, "{}", streamed_matches_compiled(&r, &r2)?)?;
     let identified = base.join("identified.json");
     let (json, identify_s) = identify(ctx, exe, &data, &identified, base)?;
     writeln!(s, "{}", coil_current_judged(&json)?)?;
@@ -140,7 +140,7 @@ pub fn end_to_end(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<Stri
 /// The streamed programme (R frames, the protocol's measurement mode) drives the same firmware
 /// as the compiled-in one (`compiled`): its first [`STREAMED_CHECK_TICKS`] command frames,
 /// bit for bit. Returns the summary line.
-fn same_commands(compiled: &HilResult, streamed: &HilResult) -> Result<String> {
+fn streamed_matches_compiled(compiled: &HilResult, streamed: &HilResult) -> Result<String> {
     let n = STREAMED_CHECK_TICKS as usize;
     ensure!(
         streamed.frames.len() >= n && compiled.frames.len() >= n,
