@@ -493,10 +493,15 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         _ => Vec::new(),
     };
     let traces = traces(measurements, &rec, &verdict.predictions);
+    // The effects the verdict names: the first, then the pair's second or the file's own.
+    let verdict_effects: Vec<String> = std::iter::once(name.clone())
+        .chain(additional_effects.iter().cloned())
+        .collect();
     let also_significant = also_significant(
         &ranked.iter().map(|r| &r.0).collect::<Vec<_>>(),
-        &std::iter::once(name.as_str())
-            .chain(additional_effects.iter().map(String::as_str))
+        &verdict_effects
+            .iter()
+            .map(String::as_str)
             .collect::<Vec<_>>(),
     );
     let coil_current_measured = options.measured_current_input;
@@ -507,15 +512,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         (rec.noise_m, rec.range_m),
         coil_current_measured,
     );
-    reason = with_grade(reason, &graded);
-    if graded.grade == grade::Grade::Pair {
-        let pair: Vec<String> = std::iter::once(name.clone())
-            .chain(additional_effects.iter().cloned())
-            .collect();
-        if let Some(caveat) = grade::pair_caveat(&pair, coil_current_measured) {
-            reason = format!("{reason}; {caveat}");
-        }
-    }
+    reason = with_grade(reason, &graded, &verdict_effects, coil_current_measured);
     let dynamic_count = rec.infos.iter().filter(|i| !i.quasi_static).count();
     let unmeasured_loops_warning = coverage::warning(&unmeasured_loops, dynamic_count);
     if unmeasured_loops_warning.is_some() && name != "none" {
@@ -532,8 +529,8 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         sample_rate_hz: rec.rate_hz,
         coil_current_measured,
     };
-    let named: Vec<String> = std::iter::once(name.clone())
-        .chain(additional_effects.iter().cloned())
+    let named: Vec<String> = verdict_effects
+        .into_iter()
         .chain(graded.partly.iter().map(|p| p.effect.clone()))
         .collect();
     let also_listed = listed_beside(&ambiguous_with, &equal_on_training, &also_significant);
@@ -623,8 +620,14 @@ fn traces(
 }
 
 /// The verdict's `reason` with what its grade adds: the share a partly explaining effect
-/// accounts for, and why "X or Y" cannot be separated.
-fn with_grade(mut reason: String, graded: &grade::Graded) -> String {
+/// accounts for, why "X or Y" cannot be separated, and for a pair (`verdict_effects`) on the
+/// commanded current alone the effect its term may be instead ([`grade::pair_caveat`]).
+fn with_grade(
+    mut reason: String,
+    graded: &grade::Graded,
+    verdict_effects: &[String],
+    coil_current_measured: bool,
+) -> String {
     if let Some(p) = &graded.partly {
         reason = format!(
             "{reason}; partly explained by {} ({:.0} ± {:.0} % of the gap's energy, at least \
@@ -640,6 +643,11 @@ fn with_grade(mut reason: String, graded: &grade::Graded) -> String {
             "{reason}; {a} or {b}: {}, these experiments cannot separate them",
             graded.either_reason
         );
+    }
+    if graded.grade == grade::Grade::Pair {
+        if let Some(caveat) = grade::pair_caveat(verdict_effects, coil_current_measured) {
+            reason = format!("{reason}; {caveat}");
+        }
     }
     reason
 }
