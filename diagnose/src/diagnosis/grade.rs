@@ -19,16 +19,27 @@
 //! Some pairs cannot be separated by any displacement record, whatever the fits say: a current
 //! amplifier whose loop yields to the rod's back-EMF. The coil's voltage is
 //! `v = R i + L_w w'` with `w = H + M` the rod's flux (per μ0 N A), and the eddy ODE (4) reads
-//! `w' = c1 (i − H/c0)`. A current loop of finite gain leaves an error that the back-EMF drives,
-//! `i = i_cmd − G(s) w'` (`G` the loop's disturbance sensitivity: `s τ_L / (s + ω_c)` for a PI
-//! loop with its zero on the coil's pole, crossover `ω_c`). Substituted into (4):
+//! `w' = c1 (i − H/c0)`. A PI loop with its zero on the coil's pole and crossover `ω_c`,
+//! `v = ω_c (τ_L s + 1)/s · (i_cmd − i)`, in units of `R` (`v = i + (τ_L/c0) w'`), leaves
+//! `i = T(s) i_cmd − G(s) w'` with
 //!
 //! ```text
-//! (1 + c1 G(s)) w' = c1 (i_cmd − H/c0)
+//! D(s) = (1 + ω_c τ_L) s + ω_c,   G(s) = (τ_L/c0) s / D(s),   T(s) = 1 − s / D(s)
+//! (1 + c1 G(s)) w' = c1 (T(s) i_cmd − H/c0)
 //! ```
 //!
-//! the eddy ODE with a frequency-dependent `c1` — the `eddy_frequency_dependence` candidate's
-//! form (a second eddy path is a frequency-dependent `R_eddy`). With the commanded current the
+//! (substituted into (4); for the bare coil, `M = 0` and `c1 → ∞`, it gives back
+//! `i = ω_c/(s + ω_c) i_cmd`). The effective `c1/(1 + c1 G)` falls from `c1` to
+//! `c1 (1 + ω_c τ_L)/(1 + ω_c τ_L + κ)` between `ω_c/(1 + ω_c τ_L + κ)` and `ω_c/(1 + ω_c τ_L)`,
+//! `κ = τ_L c1/c0 = R_eddy/R_coil` (10–100 for a coil's τ_L of 0.1–1 ms on this rod), while
+//! `T` departs from 1 by `|s/D| ≈ ω/ω_c` only. Below the loop's crossover the loop is
+//! therefore the eddy ODE with a frequency-dependent `c1` — the `eddy_frequency_dependence`
+//! candidate's form (a second eddy path is a frequency-dependent `R_eddy`). Near and above
+//! `ω_c/(1 + ω_c τ_L)` the command's lag-lead `T` is a second term, which neither that
+//! candidate nor the library's amplifier (a low-pass falling to zero) has: a loop whose `T`
+//! departs from 1 by half or more at the top sine (crossover within a few times the sines'
+//! frequencies) is mostly `unexplained` without the coil current (docs/diagnosis.md, "A PI
+//! loop of low crossover"). With the commanded current the
 //! only current a dataset holds, an `eddy_frequency_dependence` verdict is therefore always
 //! "eddy_frequency_dependence or amplifier_bandwidth", and so is the part of a gap an eddy path
 //! explains when it explains only part ("partly explained by eddy_frequency_dependence or
