@@ -63,32 +63,33 @@ fn write_default(output: Option<&PathBuf>) -> Result<()> {
     Ok(())
 }
 
+/// Validates `path` as `build.rs` would (the file, then what a firmware image needs) and prints
+/// its summary.
 fn check(path: &Path) -> Result<()> {
     let file = ActuatorParams::load(path).context("invalid parameter file")?;
     file.validate_for_firmware(&path.display().to_string())
         .context("invalid parameter file for a firmware image")?;
     let core = params_io::to_core(&file)?;
-    let measure = params_io::LoadedParams {
-        params: core,
-        origin: path.display().to_string(),
-        provenance: file.provenance.source.clone(),
-        file: file.clone(),
-    }
-    .measure();
-    let a = &file.actuator;
-    let p = &file.preisach;
-    let c = &file.control;
-    let t = &file.trajectory;
-    let total = file.preisach_total_a_per_m();
-    let stroke_m = a.rod_length_m * a.saturation_magnetostriction;
-    let mu0 = f64::from(magctl::params::VACUUM_PERMEABILITY_H_PER_M);
-    let c1 = a.eddy_resistance_ohm / (mu0 * a.coil_turns * a.rod_area_m2);
+    let measure = core.preisach.measure();
     println!(
         "{}: valid (schema version {})",
         path.display(),
         file.schema_version
     );
     println!("  provenance   {}", file.provenance.source);
+    print_actuator(&file);
+    print_preisach(&file, measure.max_density_a_per_m());
+    print_drive_and_sensor(&file);
+    print_optional_sections(&file);
+    Ok(())
+}
+
+/// The rod's constants and what follows from them (stroke, c1 of eq. (4)).
+fn print_actuator(file: &ActuatorParams) {
+    let a = &file.actuator;
+    let stroke_m = a.rod_length_m * a.saturation_magnetostriction;
+    let mu0 = f64::from(magctl::params::VACUUM_PERMEABILITY_H_PER_M);
+    let c1 = a.eddy_resistance_ohm / (mu0 * a.coil_turns * a.rod_area_m2);
     println!(
         "  actuator     N_m = {}, A_m = {:.3e} m², l_m = {:.3e} m, c0 = {:.3e} 1/m",
         a.coil_turns, a.rod_area_m2, a.rod_length_m, a.coil_factor_per_m
@@ -105,6 +106,13 @@ fn check(path: &Path) -> Result<()> {
         "               stroke l_m λ_s = {:.2} µm, c1 = R_eddy/(μ0 N_m A_m) = {c1:.4e} 1/(m·s)",
         stroke_m * 1e6
     );
+}
+
+/// The Preisach grid and its masses; `max_density_a_per_m` the largest cell's.
+fn print_preisach(file: &ActuatorParams, max_density_a_per_m: f32) {
+    let a = &file.actuator;
+    let p = &file.preisach;
+    let total = file.preisach_total_a_per_m();
     println!(
         "  preisach     {} levels ({} cells) over [{:.2}, {:.2}] kA/m, cell width {:.3} kA/m",
         p.levels,
@@ -117,8 +125,14 @@ fn check(path: &Path) -> Result<()> {
         "               Σw = {:.4e} A/m ({:.2} % of M_s), largest cell density {:.4e} A/m per cell",
         total,
         100.0 * total / a.saturation_magnetization_a_per_m,
-        measure.max_density_a_per_m()
+        max_density_a_per_m
     );
+}
+
+/// The control loop's limits, the amplifier, the sensor and the trajectory.
+fn print_drive_and_sensor(file: &ActuatorParams) {
+    let c = &file.control;
+    let t = &file.trajectory;
     println!(
         "  control      {} Hz, |I| <= {} A, |dI/dt| <= {} A/s",
         c.sample_rate_hz, c.current_limit_a, c.current_slew_limit_a_per_s
@@ -148,6 +162,13 @@ fn check(path: &Path) -> Result<()> {
         t.displacement_min_m * 1e6,
         t.displacement_max_m * 1e6
     );
+}
+
+/// The sections a file may leave out: the coil's heating, the current monitor, the datasheet.
+fn print_optional_sections(file: &ActuatorParams) {
+    let c = &file.control;
+    let amp = &file.amplifier;
+    let sn = &file.sensor;
     if let Some(h) = &file.coil_thermal {
         let rise_k_per_a2 = h.thermal_resistance_k_per_w * amp.coil_resistance_ohm;
         println!(
@@ -179,5 +200,4 @@ fn check(path: &Path) -> Result<()> {
             .collect();
         println!("  datasheet    {}", given.join(", "));
     }
-    Ok(())
 }

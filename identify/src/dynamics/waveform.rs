@@ -216,12 +216,50 @@ pub fn identify_dynamics(
     let measure = core.preisach.measure();
     let infos = describe(measurements, rate_hz);
     let nominal = nominal_for_data(params, measurements, &infos);
+    let dynamic = dynamic_experiments(&infos)?;
+    let fitted_set = fitted_band(&infos, &dynamic, options.fit_band_fraction);
+    let fitted_up_to_hz = fitted_set
+        .iter()
+        .map(|&k| infos[k].fundamental_hz)
+        .fold(0.0f64, f64::max);
+    let substeps = options
+        .substeps
+        .unwrap_or_else(|| substeps_for(fitted_up_to_hz, 1.0 / rate_hz));
+    let linear = ModelSetup {
+        nominal: &nominal,
+        measure: &measure,
+        step_s: 1.0 / rate_hz,
+        interpolation: CurrentBetweenSamples::Linear,
+        substeps,
+        single_run: false,
+    };
+    let passes = Passes::new(
+        linear,
+        (measurements, lead_in, documented),
+        &infos,
+        fitted_set,
+        options,
+    );
     let base = [
         nominal.eddy_resistance_ohm,
         nominal.damping_ratio,
         nominal.resonance_hz,
     ];
-    let dynamic: Vec<usize> = (0..measurements.len())
+    let chosen = passes.settled(base, starts);
+    let residual = residual_of(&passes, &chosen, &dynamic);
+    Ok(DynamicIdentification::of_pass(
+        &passes,
+        &chosen,
+        residual,
+        fitted_up_to_hz,
+        substeps,
+    ))
+}
+
+/// The experiments R_eddy, ξ, f0 are fitted on: those with a fundamental of at least
+/// [`QUASI_STATIC_BELOW_HZ`]; an error when there are none.
+fn dynamic_experiments(infos: &[ExperimentInfo]) -> Result<Vec<usize>, String> {
+    let dynamic: Vec<usize> = (0..infos.len())
         .filter(|&k| infos[k].fundamental_hz >= QUASI_STATIC_BELOW_HZ)
         .collect();
     if dynamic.is_empty() {
@@ -230,110 +268,51 @@ pub fn identify_dynamics(
              dynamic experiments"
         ));
     }
-    let fitted_set = fitted_band(&infos, &dynamic, options.fit_band_fraction);
-    let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
-    let fitted_up_to_hz = fitted_set
-        .iter()
-        .map(|&k| infos[k].fundamental_hz)
-        .fold(0.0f64, f64::max);
-    let substeps = options
-        .substeps
-        .unwrap_or_else(|| substeps_for(fitted_up_to_hz, 1.0 / rate_hz));
-    let passes = Passes {
-        linear: ModelSetup {
-            nominal: &nominal,
-            measure: &measure,
-            step_s: 1.0 / rate_hz,
-            interpolation: CurrentBetweenSamples::Linear,
+    Ok(dynamic)
+}
+
+impl DynamicIdentification {
+    /// The identification the chosen pass gives: its constants, nuisances and instruments, and
+    /// the residual on the dynamic experiments.
+    fn of_pass(
+        passes: &Passes<'_>,
+        chosen: &Pass,
+        residual: Residual,
+        fitted_up_to_hz: f64,
+        substeps: usize,
+    ) -> Self {
+        let v = &chosen.fit.fitted.values;
+        DynamicIdentification {
+            fitted_up_to_hz,
+            instruments: chosen
+                .fit
+                .fitted
+                .report_names()
+                .into_iter()
+                .zip(v.iter().copied())
+                .skip(COMMON_PARAMETER_COUNT)
+                .collect(),
             substeps,
-            single_run: false,
-        },
-        measurements,
-        lead_in,
-        documented,
-        documented_starts: measurements
-            .iter()
-            .map(|m| documented.and_then(|d| d.start_of(&file_name(m))))
-            .collect(),
-        probe_lens: (0..measurements.len())
-            .map(|k| (settles[k] + options.fit.max_fit_samples).min(measurements[k].len()))
-            .collect(),
-        settles,
-        fitted_set,
-        settings: &options.fit,
-        interpolations: if options.measured_current_input {
-            &[CurrentBetweenSamples::Linear]
-        } else {
-            &[CurrentBetweenSamples::Linear, CurrentBetweenSamples::Hold]
-        },
-        instruments: Candidate {
-            effects: nominal.priors.instruments(options.measured_current_input),
-        },
-        instrument_starts: nominal
-            .priors
-            .instruments(options.measured_current_input)
-            .into_iter()
-            .flat_map(|e| {
-                let specs = effect_parameters(e, &nominal);
-                nominal.priors.start(e, &specs)
-            })
-            .collect(),
-    };
-    let first_starts: Vec<[f64; 3]> = std::iter::once(base)
-        .chain(starts.iter().copied())
-        .collect();
-    let first = passes.run(base, &first_starts);
-    // The nuisances were estimated with the base file's constants. When the fit moved them
-    // far (a datasheet's R_eddy, xi, f0, not this rod's), that estimate is stale: with f0 20 %
-    // high the skew comes out at its +1 limit and f0 settles low to make up for it. So the
-    // nuisances are estimated again with the fitted constants and the fit repeated from them;
-    // the pass with the lower training residual is kept.
-    let moved =
-        |v: &[f64]| (0..3).any(|i| (v[i] / base[i]).ln().abs() > RE_ESTIMATE_NUISANCES_AFTER.ln());
-    let chosen = if moved(&first.fit.fitted.values) {
-        let v = &first.fit.fitted.values;
-        let fitted_constants = [v[0], v[1], v[2]];
-        let second = passes.run(fitted_constants, &[fitted_constants]);
-        if second.fit.fitted.training_rms_m < first.fit.fitted.training_rms_m {
-            second
-        } else {
-            first
+            eddy_resistance_ohm: v[0],
+            damping_ratio: v[1],
+            resonance_hz: v[2],
+            current_between_samples: chosen.interpolation,
+            channel_skew_samples: v[3],
+            sensor_offset_m: residual.offset_m,
+            start_state: chosen.start_sets[chosen.fit.plan].0.name().into(),
+            documented_starts: passes
+                .documented_starts
+                .iter()
+                .filter(|s| s.is_some())
+                .count(),
+            rms_m: residual.rms_m,
+            noise_m: residual.noise_m,
+            systematic_m: systematic(residual.rms_m, residual.noise_m),
+            nrmse: residual.nrmse,
+            predictions: residual.predictions,
+            evaluations: chosen.fit.fitted.evaluations,
         }
-    } else {
-        first
-    };
-    let residual = residual_of(&passes, &chosen, &dynamic);
-    let v = &chosen.fit.fitted.values;
-    Ok(DynamicIdentification {
-        fitted_up_to_hz,
-        instruments: chosen
-            .fit
-            .fitted
-            .report_names()
-            .into_iter()
-            .zip(v.iter().copied())
-            .skip(COMMON_PARAMETER_COUNT)
-            .collect(),
-        substeps,
-        eddy_resistance_ohm: v[0],
-        damping_ratio: v[1],
-        resonance_hz: v[2],
-        current_between_samples: chosen.interpolation,
-        channel_skew_samples: v[3],
-        sensor_offset_m: residual.offset_m,
-        start_state: chosen.start_sets[chosen.fit.plan].0.name().into(),
-        documented_starts: passes
-            .documented_starts
-            .iter()
-            .filter(|s| s.is_some())
-            .count(),
-        rms_m: residual.rms_m,
-        noise_m: residual.noise_m,
-        systematic_m: systematic(residual.rms_m, residual.noise_m),
-        nrmse: residual.nrmse,
-        predictions: residual.predictions,
-        evaluations: chosen.fit.fitted.evaluations,
-    })
+    }
 }
 
 /// The inputs make sense (a valid base, positive starts, one sampling rate, substeps and band
@@ -410,6 +389,14 @@ fn file_name(m: &Measurement) -> String {
 }
 
 /// What every pass shares: the model, the records, their starts, the fitted experiments.
+/// The measurements in recording order, the record the first was recorded right after, and
+/// `dataset.json`.
+type Records<'a> = (
+    &'a [Measurement],
+    Option<&'a Measurement>,
+    Option<&'a DatasetInfo>,
+);
+
 struct Passes<'a> {
     linear: ModelSetup<'a>,
     measurements: &'a [Measurement],
@@ -438,7 +425,85 @@ struct Pass {
     fit: maglab_model::plan_fit::PlanFit,
 }
 
-impl Passes<'_> {
+impl<'a> Passes<'a> {
+    /// The passes' shared inputs: the records, their documented starts, how much of each the
+    /// nuisance estimate probes, the current between samples it may choose and the instruments
+    /// the base file's datasheet puts beside the rod (fitted from their datasheet values).
+    /// `records` are the measurements in recording order, the record before the first and
+    /// `dataset.json` ([`identify_dynamics`]); `fitted_set` the experiments the fit trains on.
+    fn new(
+        linear: ModelSetup<'a>,
+        records: Records<'a>,
+        infos: &[ExperimentInfo],
+        fitted_set: Vec<usize>,
+        options: &'a IdentificationOptions,
+    ) -> Self {
+        let (measurements, lead_in, documented) = records;
+        let nominal = linear.nominal;
+        let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
+        let instruments = nominal.priors.instruments(options.measured_current_input);
+        Passes {
+            linear,
+            measurements,
+            lead_in,
+            documented,
+            documented_starts: measurements
+                .iter()
+                .map(|m| documented.and_then(|d| d.start_of(&file_name(m))))
+                .collect(),
+            probe_lens: (0..measurements.len())
+                .map(|k| (settles[k] + options.fit.max_fit_samples).min(measurements[k].len()))
+                .collect(),
+            settles,
+            fitted_set,
+            settings: &options.fit,
+            interpolations: if options.measured_current_input {
+                &[CurrentBetweenSamples::Linear]
+            } else {
+                &[CurrentBetweenSamples::Linear, CurrentBetweenSamples::Hold]
+            },
+            instrument_starts: instruments
+                .iter()
+                .flat_map(|&e| {
+                    let specs = effect_parameters(e, nominal);
+                    nominal.priors.start(e, &specs)
+                })
+                .collect(),
+            instruments: Candidate {
+                effects: instruments,
+            },
+        }
+    }
+
+    /// The pass the fit settles on from `base` (the base file's constants) and the extra
+    /// `starts`.
+    ///
+    /// The nuisances of the first pass are estimated with the base file's constants. When the
+    /// fit moved them far (a datasheet's R_eddy, xi, f0, not this rod's), that estimate is
+    /// stale: with f0 20 % high the skew comes out at its +1 limit and f0 settles low to make
+    /// up for it. So the nuisances are estimated again with the fitted constants and the fit
+    /// repeated from them; the pass with the lower training residual is kept.
+    fn settled(&self, base: [f64; 3], starts: &[[f64; 3]]) -> Pass {
+        let first_starts: Vec<[f64; 3]> = std::iter::once(base)
+            .chain(starts.iter().copied())
+            .collect();
+        let first = self.run(base, &first_starts);
+        let moved = |v: &[f64]| {
+            (0..3).any(|i| (v[i] / base[i]).ln().abs() > RE_ESTIMATE_NUISANCES_AFTER.ln())
+        };
+        if !moved(&first.fit.fitted.values) {
+            return first;
+        }
+        let v = &first.fit.fitted.values;
+        let fitted_constants = [v[0], v[1], v[2]];
+        let second = self.run(fitted_constants, &[fitted_constants]);
+        if second.fit.fitted.training_rms_m < first.fit.fitted.training_rms_m {
+            second
+        } else {
+            first
+        }
+    }
+
     /// One pass: the nuisances estimated with the model of `constants`, then the fit from
     /// `fit_starts` with them.
     fn run(&self, constants: [f64; 3], fit_starts: &[[f64; 3]]) -> Pass {

@@ -11,11 +11,20 @@ fn opt_ka(v: Option<f64>) -> String {
     v.map_or("—".to_string(), |v| format!("{:+.2}", v / 1e3))
 }
 
+/// Prints the report of `set`, the loops of the Preisach measure `measure` of `loaded`.
 pub(super) fn print_report(
     loaded: &LoadedParams,
     measure: &PreisachMeasure,
     set: &LoopSet,
 ) -> Result<()> {
+    print_header(loaded, measure);
+    print_branches(loaded, measure, set)?;
+    print_loops(loaded, set);
+    Ok(())
+}
+
+/// The grid, where the parameters come from, and the rod's saturation and stroke.
+fn print_header(loaded: &LoadedParams, measure: &PreisachMeasure) {
     let act = &loaded.params.actuator;
     let grid = &loaded.params.preisach;
     let m_s = f64::from(act.saturation_magnetization_a_per_m);
@@ -36,8 +45,15 @@ pub(super) fn print_report(
         stroke_um,
         c0
     );
+}
 
-    // M on the branches at nine fields, evaluated exactly from each branch's start state.
+/// `M` on the initial and major branches at nine fields across the grid, each evaluated exactly
+/// from its branch's start state, and the saturation the major loop reaches.
+fn print_branches(loaded: &LoadedParams, measure: &PreisachMeasure, set: &LoopSet) -> Result<()> {
+    let grid = &loaded.params.preisach;
+    let m_s = f64::from(loaded.params.actuator.saturation_magnetization_a_per_m);
+    let total = f64::from(measure.saturation_a_per_m());
+    let c0 = f64::from(loaded.params.actuator.coil_factor_per_m);
     let h_min = f64::from(grid.h_min_a_per_m);
     let h_max = f64::from(grid.h_max_a_per_m);
     println!();
@@ -73,6 +89,14 @@ pub(super) fn print_report(
         100.0 * total / m_s
     );
 
+    Ok(())
+}
+
+/// Per loop: its field and magnetization ranges, coercive fields, remanences, stroke range,
+/// hysteresis loss and closure error; then the biased loop's band.
+fn print_loops(loaded: &LoadedParams, set: &LoopSet) {
+    let m_s = f64::from(loaded.params.actuator.saturation_magnetization_a_per_m);
+    let stroke_um = f64::from(loaded.params.actuator.stroke_m()) * 1e6;
     println!();
     println!(
         "{:<24} {:>17} {:>17} {:>15} {:>15} {:>13} {:>14} {:>9}",
@@ -129,5 +153,4 @@ pub(super) fn print_report(
             ""
         }
     );
-    Ok(())
 }

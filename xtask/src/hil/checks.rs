@@ -6,6 +6,7 @@ use crate::util::Ctx;
 use anyhow::{ensure, Context, Result};
 use magctl::inverse::CommandFlags;
 use std::fmt::Write as _;
+use std::path::Path;
 
 /// The runs `cargo xtask test` makes (step `hil`): the default plant for one second (exit 0,
 /// tracking ≤ 1 % of the peak-to-peak on the true displacement, ≤ 30 s wall); the Python plant
@@ -19,11 +20,24 @@ pub fn check(ctx: &Ctx) -> Result<String> {
     let elf = firmware(ctx)?;
     let exe = maglab(ctx)?;
     let base = ctx.root.join("out").join("hil");
-    let mut summary = String::new();
+    let mut summary = default_plant(ctx, &elf, &exe, &base)?;
+    summary.push_str(&python_plants(ctx, &elf, &base)?);
+    summary.push_str(&conditioning(ctx, &elf, &exe, &base)?);
+    summary.push_str(&end_to_end(ctx, &elf, &exe, &base.join("e2e"))?);
+    let matrix = super::matrix::interrupt_matrix(ctx, &elf, &exe, &base.join("matrix"))?;
+    print!("{matrix}");
+    summary.push_str(&matrix);
+    summary.push_str(&faults(ctx, &elf, &exe, &base)?);
+    summary.push_str(&super::nucleo::check(ctx, &exe, &base.join("nucleo"))?);
+    std::fs::write(base.join("summary.txt"), &summary)?;
+    Ok(summary)
+}
 
+/// The default plant for one second: exit 0, more commands than ticks (the conditioning comes
+/// first), ≤ 30 s of wall time, tracking ≤ 1 % of the peak-to-peak.
+fn default_plant(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<String> {
     let default = HilRun::new(base.join("default"));
-    let r = run_once(ctx, &elf, Some(&exe), &default)?;
-    summary.push_str(&r.summary);
+    let r = run_once(ctx, elf, Some(exe), &default)?;
     let (rms, _, _) = r
         .tracking
         .context("no tracking error from the default plant")?;
@@ -42,13 +56,18 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         rms <= 1.0,
         "tracking RMS {rms:.3} % > 1 % on the default plant"
     );
+    Ok(r.summary)
+}
 
+/// The Python plant speaking the protocol (its tracking scored on the true displacement it
+/// reports), and the same plant started 5 s late.
+fn python_plants(ctx: &Ctx, elf: &Path, base: &Path) -> Result<String> {
     let mut py = HilRun::new(base.join("python"));
     py.plant_cmd =
         Some("python3 host-tests/hil/first_order_plant.py --params params/actuator.json".into());
     py.ticks = 2_000;
-    let r = run_once(ctx, &elf, None, &py)?;
-    summary.push_str(&r.summary);
+    let mut r = run_once(ctx, elf, None, &py)?;
+    let mut summary = std::mem::take(&mut r.summary);
     // The Python plant writes its true displacement (docs/hil.md, "Scoring"): the tracking
     // figure is scored on it, and says so.
     ensure!(
@@ -70,11 +89,14 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         "sleep 5; python3 host-tests/hil/first_order_plant.py --params params/actuator.json".into(),
     );
     slow.ticks = 200;
-    let r = run_once(ctx, &elf, None, &slow)?;
+    let r = run_once(ctx, elf, None, &slow)?;
     summary.push_str(&r.summary);
+    Ok(summary)
+}
 
-    // Start-up conditioning against unknown prior histories (20 random current levels within
-    // ±I_max before power-up), with and without it.
+/// Start-up conditioning against unknown prior histories (20 random current levels within
+/// ±I_max before power-up), with and without it: tracking ≤ 1 % with it on every seed.
+fn conditioning(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<String> {
     let mut table = String::from(
         "start-up conditioning vs a random prior history (20 levels), 0.3 s of feedforward tracking:\n  seed  with: RMS %  max %   without: RMS %  max %\n",
     );
@@ -96,7 +118,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
             c.conditioning = conditioning;
             // Feedforward only: what conditioning is for is the memory the inverse assumes.
             c.feedback = false;
-            let r = run_once(ctx, &elf, Some(&exe), &c)?;
+            let r = run_once(ctx, elf, Some(exe), &c)?;
             let (a, b, _) = r.tracking.context("no tracking error")?;
             rms[k] = a;
             max[k] = b;
@@ -113,13 +135,13 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         );
     }
     print!("{table}");
-    summary.push_str(&table);
+    Ok(table)
+}
 
-    summary.push_str(&end_to_end(ctx, &elf, &exe, &base.join("e2e"))?);
-    let matrix = super::matrix::interrupt_matrix(ctx, &elf, &exe, &base.join("matrix"))?;
-    print!("{matrix}");
-    summary.push_str(&matrix);
-
+/// A NaN sample (exit 7), a silent link and a desynchronized frame (exit 8), injected in
+/// tracking: each must be the run's first fault and end as [`check_fault_end`] asks.
+fn faults(ctx: &Ctx, elf: &Path, exe: &Path, base: &Path) -> Result<String> {
+    let mut summary = String::new();
     // (name, fault, exit status, feedback on, the run must end at 0 A); injected in tracking,
     // after the start-up conditioning (1,055 ticks with the feedback on, 552 without).
     for (name, inject, exit, feedback, zero) in [
@@ -133,7 +155,7 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         f.inject = Some(inject);
         f.expect_exit = exit;
         f.feedback = feedback;
-        let r = run_once(ctx, &elf, Some(&exe), &f)?;
+        let r = run_once(ctx, elf, Some(exe), &f)?;
         summary.push_str(&r.summary);
         // The expected exit status alone would also pass a fault of the run's own before the
         // injected one (a frame lost at tick 0 once ended the silent run with exit 8 too).
@@ -148,8 +170,6 @@ pub fn check(ctx: &Ctx) -> Result<String> {
         );
         check_fault_end(name, &f.out, zero)?;
     }
-    summary.push_str(&super::nucleo::check(ctx, &exe, &base.join("nucleo"))?);
-    std::fs::write(base.join("summary.txt"), &summary)?;
     Ok(summary)
 }
 
