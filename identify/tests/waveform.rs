@@ -2,6 +2,7 @@
 //! automatic substeps of `maglab_identify::dynamics::waveform`.
 
 use maglab_dataset::CurrentBetweenSamples;
+use maglab_model::fit::ModelSetup;
 use maglab_model::model::*;
 use std::f64::consts::PI;
 
@@ -50,16 +51,20 @@ fn automatic_substeps_hold_the_phase_at_the_top_fitted_frequency() {
     let electro = Electro::nominal(params.actuator.eddy_resistance_ohm);
     let mech = Mech::nominal(params.actuator.damping_ratio, params.actuator.resonance_hz);
     let phase_error_deg = |substeps: usize| {
+        let setup = ModelSetup {
+            nominal: &nominal,
+            measure: &measure,
+            step_s,
+            interpolation: CurrentBetweenSamples::Hold,
+            substeps,
+            single_run: false,
+        };
         let y = simulate(
-            &nominal,
-            &measure,
+            &setup,
             &electro,
             &mech,
             &experiment.current_a,
-            step_s,
-            CurrentBetweenSamples::Hold,
             &ModelStart::State(StartState::Demagnetized),
-            substeps,
         );
         let d = phase_at(&y, freq_hz, step_s) - phase_at(&recorded.displacement_m, freq_hz, step_s);
         d.to_degrees()

@@ -18,8 +18,10 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use maglab_dataset::{CurrentBetweenSamples, StartState};
+use maglab_model::fit::ModelSetup;
 use maglab_model::model::{
-    run_electro, simulate, track_mech, track_mech_lanes, Electro, Mech, ModelStart, Nominal,
+    run_electro, simulate, track_mech, track_mech_lanes, Electro, ElectroDrive, Mech, ModelStart,
+    Nominal,
 };
 use std::f64::consts::PI;
 use std::hint::black_box;
@@ -90,21 +92,26 @@ fn bench(c: &mut Criterion) {
             },
         ),
     ];
+    let setup = ModelSetup {
+        nominal: &nominal,
+        measure: &measure,
+        step_s: STEP_S,
+        interpolation: CurrentBetweenSamples::Linear,
+        substeps: 1,
+        single_run: false,
+    };
+    let start = ModelStart::State(StartState::Demagnetized);
     let mut group = c.benchmark_group("diagnosis model, 3,000 samples");
     group.throughput(Throughput::Elements(SAMPLES as u64));
     for (name, electro, mech) in &forms {
         group.bench_function(*name, |b| {
             b.iter(|| {
                 simulate(
-                    &nominal,
-                    &measure,
+                    &setup,
                     black_box(electro),
                     black_box(mech),
                     black_box(&currents_a),
-                    STEP_S,
-                    CurrentBetweenSamples::Linear,
-                    &ModelStart::State(StartState::Demagnetized),
-                    1,
+                    &start,
                 )
             })
         });
@@ -112,17 +119,12 @@ fn bench(c: &mut Criterion) {
     group.finish();
 
     // The Jacobian's mechanical columns of a ΔE + load pair.
-    let run = run_electro(
-        &nominal,
-        &measure,
-        &electro,
-        &currents_a,
-        STEP_S,
-        CurrentBetweenSamples::Linear,
-        &ModelStart::State(StartState::Demagnetized),
-        None,
-        1,
-    );
+    let drive = ElectroDrive {
+        currents_a: &currents_a,
+        start: &start,
+        previous: None,
+    };
+    let run = run_electro(&setup, &electro, drive);
     let base = Mech {
         delta_e: Some((0.5, -0.3, 0.2, 0.1)),
         load: Some((0.3, 900.0, 0.2)),

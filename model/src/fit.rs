@@ -39,7 +39,7 @@ use crate::candidates::{self, Candidate, ParamSpec, Stage, COMMON_PARAMETER_COUN
 use crate::effects::EffectName;
 use crate::model::{
     chained_temperature, observe, run_electro, run_electro_single, run_mech, track_mech_lanes,
-    Electro, ElectroRun, Mech, MechTrack, ModelStart, Nominal,
+    Electro, ElectroDrive, ElectroRun, Mech, MechTrack, ModelStart, Nominal,
 };
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use magctl::preisach::PreisachMeasure;
@@ -99,17 +99,12 @@ impl ModelSetup<'_> {
         } else {
             run_electro
         };
-        run(
-            self.nominal,
-            self.measure,
-            e,
-            &x.current_a[..len],
-            self.step_s,
-            self.interpolation,
-            &x.start,
+        let drive = ElectroDrive {
+            currents_a: &x.current_a[..len],
+            start: &x.start,
             previous,
-            self.substeps,
-        )
+        };
+        run(self, e, drive)
     }
 
     /// Stage A of the experiments `which` of `data` (their first `lens[i]` samples). When an

@@ -41,6 +41,7 @@
 //! Output sample `k` is the displacement the sensor reads at `t_k`, before the current of
 //! sample `k` acts on a held command (the recording convention of `maglab rig`).
 
+use crate::fit::ModelSetup;
 use magctl::preisach::{PreisachMeasure, PreisachState};
 use maglab_dataset::{CurrentBetweenSamples, StartState};
 use std::borrow::Cow;
@@ -318,17 +319,23 @@ pub fn eddy_paths(
     }
 }
 
-/// One electromagnetic run with `s` substeps per sample: `(M at substep ends, mean I², end memory)`.
-#[allow(clippy::too_many_arguments)]
+/// What one run of the electromagnetic stage is driven by and starts from.
+#[derive(Debug, Clone, Copy)]
+pub struct ElectroDrive<'a> {
+    /// The coil current per sample, A: the command, or the measured coil current.
+    pub currents_a: &'a [f64],
+    /// The experiment's start.
+    pub start: &'a ModelStart,
+    /// The memory the previous experiment of a chain left, for a chained start.
+    pub previous: Option<&'a Memory>,
+}
+
+/// One electromagnetic run with `s` substeps per sample (`setup`'s own substeps are not used):
+/// `(M at substep ends, mean I², end memory)`.
 fn electro_once(
-    nominal: &Nominal,
-    measure: &PreisachMeasure,
+    setup: &ModelSetup<'_>,
     e: &Electro,
-    currents_a: &[f64],
-    step_s: f64,
-    interp: CurrentBetweenSamples,
-    start: &ModelStart,
-    previous: Option<&Memory>,
+    drive: ElectroDrive<'_>,
     s: usize,
 ) -> (Vec<f64>, Vec<f64>, Memory) {
     // The second eddy path is a compile-time switch: as a run-time one it cost the substep loop
@@ -338,24 +345,28 @@ fn electro_once(
     } else {
         electro_steps::<false>
     };
-    run(
-        nominal, measure, e, currents_a, step_s, interp, start, previous, s,
-    )
+    run(setup, e, drive, s)
 }
 
 /// [`electro_once`] with or without the second eddy path's state.
-#[allow(clippy::too_many_arguments)]
 fn electro_steps<const SECOND_PATH: bool>(
-    nominal: &Nominal,
-    measure: &PreisachMeasure,
+    setup: &ModelSetup<'_>,
     e: &Electro,
-    currents_a: &[f64],
-    step_s: f64,
-    interp: CurrentBetweenSamples,
-    start: &ModelStart,
-    previous: Option<&Memory>,
+    drive: ElectroDrive<'_>,
     s: usize,
 ) -> (Vec<f64>, Vec<f64>, Memory) {
+    let ModelSetup {
+        nominal,
+        measure,
+        step_s,
+        interpolation: interp,
+        ..
+    } = *setup;
+    let ElectroDrive {
+        currents_a,
+        start,
+        previous,
+    } = drive;
     let n = currents_a.len();
     let delta = step_s / s as f64;
     let c0 = nominal.c0_per_m;
@@ -454,34 +465,12 @@ fn electro_steps<const SECOND_PATH: bool>(
     (m_out, i2_out, memory)
 }
 
-/// The electromagnetic stage (module docs): Richardson combination of runs with `substeps` and
-/// `2 substeps` substeps per sample (the coarse one is [`run_electro_single`]'s).
-#[allow(clippy::too_many_arguments)]
-pub fn run_electro(
-    nominal: &Nominal,
-    measure: &PreisachMeasure,
-    e: &Electro,
-    currents_a: &[f64],
-    step_s: f64,
-    interp: CurrentBetweenSamples,
-    start: &ModelStart,
-    previous: Option<&Memory>,
-    substeps: usize,
-) -> ElectroRun {
-    let coarse = run_electro_single(
-        nominal, measure, e, currents_a, step_s, interp, start, previous, substeps,
-    );
-    let (fine, _, end) = electro_once(
-        nominal,
-        measure,
-        e,
-        currents_a,
-        step_s,
-        interp,
-        start,
-        previous,
-        2 * coarse.substeps,
-    );
+/// The electromagnetic stage (module docs): Richardson combination of runs with
+/// `setup.substeps` and twice as many substeps per sample (the coarse one is
+/// [`run_electro_single`]'s).
+pub fn run_electro(setup: &ModelSetup<'_>, e: &Electro, drive: ElectroDrive<'_>) -> ElectroRun {
+    let coarse = run_electro_single(setup, e, drive);
+    let (fine, _, end) = electro_once(setup, e, drive, 2 * coarse.substeps);
     let m = coarse
         .m_a_per_m
         .iter()
@@ -495,25 +484,16 @@ pub fn run_electro(
     }
 }
 
-/// The electromagnetic stage from one run with `substeps` substeps per sample, without the
-/// Richardson pair: first order in the step, about a third of [`run_electro`]'s cost. Only the
-/// fit's Jacobian uses it (`crate::fit`'s module docs): a slope, never a residual.
-#[allow(clippy::too_many_arguments)]
+/// The electromagnetic stage from one run with `setup.substeps` substeps per sample, without
+/// the Richardson pair: first order in the step, about a third of [`run_electro`]'s cost. Only
+/// the fit's Jacobian uses it (`crate::fit`'s module docs): a slope, never a residual.
 pub fn run_electro_single(
-    nominal: &Nominal,
-    measure: &PreisachMeasure,
+    setup: &ModelSetup<'_>,
     e: &Electro,
-    currents_a: &[f64],
-    step_s: f64,
-    interp: CurrentBetweenSamples,
-    start: &ModelStart,
-    previous: Option<&Memory>,
-    substeps: usize,
+    drive: ElectroDrive<'_>,
 ) -> ElectroRun {
-    let s = substeps.max(1);
-    let (m, i2, end) = electro_once(
-        nominal, measure, e, currents_a, step_s, interp, start, previous, s,
-    );
+    let s = setup.substeps.max(1);
+    let (m, i2, end) = electro_once(setup, e, drive, s);
     ElectroRun {
         substeps: s,
         m_a_per_m: m,
@@ -705,22 +685,27 @@ pub fn hermite(value: &[f64], rate: &[f64], delta: f64, t: f64) -> f64 {
 }
 
 /// Convenience: the whole model on one current (no offset), m.
-#[allow(clippy::too_many_arguments)]
 pub fn simulate(
-    nominal: &Nominal,
-    measure: &PreisachMeasure,
+    setup: &ModelSetup<'_>,
     electro: &Electro,
     mech: &Mech,
     currents_a: &[f64],
-    step_s: f64,
-    interp: CurrentBetweenSamples,
     start: &ModelStart,
-    substeps: usize,
 ) -> Vec<f64> {
-    let run = run_electro(
-        nominal, measure, electro, currents_a, step_s, interp, start, None, substeps,
-    );
-    run_mech(nominal, mech, &run, currents_a.len(), step_s, (0.0, 0.0))
+    let drive = ElectroDrive {
+        currents_a,
+        start,
+        previous: None,
+    };
+    let run = run_electro(setup, electro, drive);
+    run_mech(
+        setup.nominal,
+        mech,
+        &run,
+        currents_a.len(),
+        setup.step_s,
+        (0.0, 0.0),
+    )
 }
 
 /// The thermal state `(θ, φ)` (A²) at the start of an experiment whose predecessors `history`

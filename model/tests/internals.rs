@@ -280,6 +280,7 @@ mod fit {
 mod model {
     use magctl::preisach::PreisachMeasure;
     use maglab_dataset::{CurrentBetweenSamples, StartState};
+    use maglab_model::fit::ModelSetup;
     use maglab_model::model::*;
     use std::f64::consts::PI;
 
@@ -299,16 +300,23 @@ mod model {
         step_s: f64,
         substeps: usize,
     ) -> ElectroRun {
-        run_electro(
+        let setup = ModelSetup {
             nominal,
             measure,
-            &Electro::nominal(nominal.eddy_resistance_ohm),
-            currents,
             step_s,
-            CurrentBetweenSamples::Linear,
-            &ModelStart::State(StartState::SwitchOnDemagnetized),
-            None,
+            interpolation: CurrentBetweenSamples::Linear,
             substeps,
+            single_run: false,
+        };
+        let drive = ElectroDrive {
+            currents_a: currents,
+            start: &ModelStart::State(StartState::SwitchOnDemagnetized),
+            previous: None,
+        };
+        run_electro(
+            &setup,
+            &Electro::nominal(nominal.eddy_resistance_ohm),
+            drive,
         )
     }
 
@@ -597,20 +605,21 @@ mod model {
         let currents: Vec<f64> = (0..1500)
             .map(|k| 0.3 + 0.25 * (2.0 * PI * 220.0 * k as f64 * step_s).sin())
             .collect();
-        let run = |e: &Electro| {
-            run_electro(
-                &nominal,
-                &measure,
-                e,
-                &currents,
-                step_s,
-                CurrentBetweenSamples::Linear,
-                &ModelStart::State(StartState::SwitchOnDemagnetized),
-                None,
-                2,
-            )
-            .m_a_per_m
+        let setup = ModelSetup {
+            nominal: &nominal,
+            measure: &measure,
+            step_s,
+            interpolation: CurrentBetweenSamples::Linear,
+            substeps: 2,
+            single_run: false,
         };
+        let start = ModelStart::State(StartState::SwitchOnDemagnetized);
+        let drive = ElectroDrive {
+            currents_a: &currents,
+            start: &start,
+            previous: None,
+        };
+        let run = |e: &Electro| run_electro(&setup, e, drive).m_a_per_m;
         let mut one = Electro::nominal(nominal.eddy_resistance_ohm);
         one.eddy_path = Some((3.0, 150.0));
         let mut two = one;
