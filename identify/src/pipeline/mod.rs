@@ -282,42 +282,15 @@ pub fn identify(
         options,
         progress,
     };
-    let mut mass_options = MassOptions {
-        documented: dataset.documented.clone(),
-        lag_correction: Some(passes::constants_of(base.params)),
-        current_shift_samples: 0.0,
-        reach: split.reach(base.params.actuator.coil_factor_per_m),
-        ..options.masses.clone()
-    };
-    mass_options.fit.reversible = options.reversible.first_fit();
     let quasi_static = dataset.quasi_static_input();
-    let mut masses = identify_masses(&quasi_static, base.params, base.name, &mass_options)
-        .map_err(|e| IdentifyError::step("Preisach masses", e))?;
-    let mut reversible = None;
-    let mut first_pass: Option<DynamicFit> = None;
-    if options.reversible == ReversiblePart::Auto {
-        let decided = reversible::choose(&dynamic_stage, base, &mass_options, masses)?;
-        masses = decided.masses;
-        mass_options = decided.options;
-        first_pass = decided.first_pass;
-        reversible = Some(decided.choice);
-    }
-    let mut chosen = None;
-    let mut dynamic = None;
-    if !split.dynamic.is_empty() {
-        if options.waveform_fit {
-            let first = match first_pass {
-                Some(fit) => fit,
-                None => dynamic_stage.fit(&masses.params, None)?,
-            };
-            let kept = passes::alternate(&dynamic_stage, base, &mass_options, first)?;
-            masses = kept.masses.clone();
-            dynamic = Some(kept.fit.clone());
-            chosen = Some(kept);
-        } else {
-            dynamic = Some(dynamic_stage.fit(&masses.params, None)?);
-        }
-    }
+    let FirstMasses {
+        masses,
+        options: mass_options,
+        first_pass,
+        reversible,
+    } = first_masses(&dynamic_stage, base, &quasi_static)?;
+    let (masses, dynamic, chosen) =
+        fit_dynamics(&dynamic_stage, base, &mass_options, masses, first_pass)?;
     let mut params = masses.params.clone();
     if let Some(fit) = &dynamic {
         crate::dynamics::record::record(&mut params, fit, split);
@@ -325,41 +298,13 @@ pub fn identify(
             .validate("identified parameters")
             .map_err(IdentifyError::Invalid)?;
     }
-    if let Some(kept) = &chosen {
-        params
-            .provenance
-            .details
-            .insert("masses_lag_correction".into(), kept.provenance());
-    }
-    if let Some(choice) = &reversible {
-        params
-            .provenance
-            .details
-            .insert(reversible::PROVENANCE_KEY.into(), choice.provenance());
-    }
-    if let Some(amplifier) = &dataset.amplifier {
-        params.provenance.details.insert(
-            AMPLIFIER_KEY.into(),
-            serde_json::json!({
-                "input": "the measured coil current (coil_current_a): the rod was identified from \
-                          the current in its coil, the amplifier from the command against it",
-                "judgement": amplifier,
-            }),
-        );
-    }
-    let priors = maglab_model::priors::uses_of(base.params);
-    if !priors.is_empty() {
-        params.provenance.details.insert(
-            PRIORS_KEY.into(),
-            serde_json::Value::Array(priors.iter().map(|u| u.to_json()).collect()),
-        );
-    }
-    if let Some(measured) = crate::coverage::measured_loops(&quasi_static, &split.dynamic) {
-        params.provenance.details.insert(
-            crate::coverage::MeasuredLoops::PROVENANCE_KEY.into(),
-            measured.to_json(),
-        );
-    }
+    record_provenance(
+        &mut params,
+        (chosen.as_ref(), reversible.as_ref()),
+        dataset,
+        base,
+        &quasi_static,
+    );
     let warnings = checks::warnings(
         &masses,
         dynamic.as_ref(),
@@ -381,4 +326,119 @@ pub fn identify(
         reversible,
         warnings,
     })
+}
+
+/// The masses from the quasi-static records before the dynamics are fitted, with the options
+/// they were fitted with and `--reversible auto`'s decision (and the dynamic fit it made).
+struct FirstMasses {
+    masses: MassIdentification,
+    options: MassOptions,
+    first_pass: Option<DynamicFit>,
+    reversible: Option<ReversibleChoice>,
+}
+
+/// The first fit of the masses (their lags corrected with the base file's constants), and with
+/// `--reversible auto` the choice of the reversible part ([`reversible::choose`]).
+fn first_masses(
+    stage: &dynamic::DynamicStage<'_>,
+    base: Base<'_>,
+    quasi_static: &maglab_dataset::data::Dataset,
+) -> Result<FirstMasses, IdentifyError> {
+    let options = stage.options;
+    let mut mass_options = MassOptions {
+        documented: stage.dataset.documented.clone(),
+        lag_correction: Some(passes::constants_of(base.params)),
+        current_shift_samples: 0.0,
+        reach: stage
+            .dataset
+            .split
+            .reach(base.params.actuator.coil_factor_per_m),
+        ..options.masses.clone()
+    };
+    mass_options.fit.reversible = options.reversible.first_fit();
+    let masses = identify_masses(quasi_static, base.params, base.name, &mass_options)
+        .map_err(|e| IdentifyError::step("Preisach masses", e))?;
+    if options.reversible != ReversiblePart::Auto {
+        return Ok(FirstMasses {
+            masses,
+            options: mass_options,
+            first_pass: None,
+            reversible: None,
+        });
+    }
+    let decided = reversible::choose(stage, base, &mass_options, masses)?;
+    Ok(FirstMasses {
+        masses: decided.masses,
+        options: decided.options,
+        first_pass: decided.first_pass,
+        reversible: Some(decided.choice),
+    })
+}
+
+/// R_eddy, ξ, f0 and the instruments from the dynamic records, `(masses, dynamic fit, kept
+/// pass)`: with the waveform fit, the alternation of masses and constants from the first pass
+/// ([`passes::alternate`]), whose kept pass gives the masses; without it, one fit on `masses`.
+/// Without dynamic records, `masses` alone.
+fn fit_dynamics(
+    stage: &dynamic::DynamicStage<'_>,
+    base: Base<'_>,
+    mass_options: &MassOptions,
+    masses: MassIdentification,
+    first_pass: Option<DynamicFit>,
+) -> Result<(MassIdentification, Option<DynamicFit>, Option<ChosenPass>), IdentifyError> {
+    if stage.dataset.split.dynamic.is_empty() {
+        return Ok((masses, None, None));
+    }
+    if !stage.options.waveform_fit {
+        let fit = stage.fit(&masses.params, None)?;
+        return Ok((masses, Some(fit), None));
+    }
+    let first = match first_pass {
+        Some(fit) => fit,
+        None => stage.fit(&masses.params, None)?,
+    };
+    let kept = passes::alternate(stage, base, mass_options, first)?;
+    Ok((kept.masses.clone(), Some(kept.fit.clone()), Some(kept)))
+}
+
+/// The identified file's provenance: the masses' lag correction of the kept pass, the
+/// reversible part's decision, the amplifier judged on the coil current, the datasheet priors
+/// used and the loops the quasi-static records measured.
+fn record_provenance(
+    params: &mut ActuatorParams,
+    (chosen, reversible): (Option<&ChosenPass>, Option<&ReversibleChoice>),
+    dataset: &RecordedDataset,
+    base: Base<'_>,
+    quasi_static: &maglab_dataset::data::Dataset,
+) {
+    let details = &mut params.provenance.details;
+    if let Some(kept) = chosen {
+        details.insert("masses_lag_correction".into(), kept.provenance());
+    }
+    if let Some(choice) = reversible {
+        details.insert(reversible::PROVENANCE_KEY.into(), choice.provenance());
+    }
+    if let Some(amplifier) = &dataset.amplifier {
+        details.insert(
+            AMPLIFIER_KEY.into(),
+            serde_json::json!({
+                "input": "the measured coil current (coil_current_a): the rod was identified from \
+                          the current in its coil, the amplifier from the command against it",
+                "judgement": amplifier,
+            }),
+        );
+    }
+    let priors = maglab_model::priors::uses_of(base.params);
+    if !priors.is_empty() {
+        details.insert(
+            PRIORS_KEY.into(),
+            serde_json::Value::Array(priors.iter().map(|u| u.to_json()).collect()),
+        );
+    }
+    if let Some(measured) = crate::coverage::measured_loops(quasi_static, &dataset.split.dynamic) {
+        details.insert(
+            crate::coverage::MeasuredLoops::PROVENANCE_KEY.into(),
+            measured.to_json(),
+        );
+    }
 }
