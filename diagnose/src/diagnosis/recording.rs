@@ -14,7 +14,7 @@ use maglab_model::experiments::{
     describe, displacement_range, experiment_data, nominal_for_data, ExperimentInfo,
     QUASI_STATIC_BELOW_HZ,
 };
-use maglab_model::fit::ModelSetup;
+use maglab_model::fit::{ExperimentData, ModelSetup};
 use maglab_model::model::{Electro, Mech, Memory, ModelStart, Nominal};
 use maglab_model::nuisance::{estimate_nuisances, lead_in_memory, NuisanceEstimate};
 use maglab_model::residual::{offset_of, pooled_rms, systematic};
@@ -95,16 +95,8 @@ pub fn analyse(
         .map(|m| documented.and_then(|d| d.start_of(&file_name(m))))
         .collect();
     progress(1);
-    let dynamic: Vec<usize> = (0..measurements.len())
-        .filter(|&k| !infos[k].quasi_static)
-        .collect();
+    let dynamic = dynamic_experiments(&infos)?;
     let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
-    if dynamic.len() < 2 {
-        return Err(format!(
-            "the diagnosis needs at least 2 dynamic experiments (fundamental >= {QUASI_STATIC_BELOW_HZ} Hz), got {}",
-            dynamic.len()
-        ));
-    }
     // ---- Step 2: nuisances, with the parameter file's model.
     let file_electro = Electro::nominal(nominal.eddy_resistance_ohm);
     let file_mech = Mech::nominal(nominal.damping_ratio, nominal.resonance_hz);
@@ -116,32 +108,17 @@ pub fn analyse(
         substeps: options.substeps,
         single_run: false,
     };
-    let probe_lens: Vec<usize> = (0..measurements.len())
-        .map(|k| (infos[k].settle_samples + options.fit.max_fit_samples).min(measurements[k].len()))
-        .collect();
-    let lead_ins = lead_ins(
+    let estimate = file_nuisances(
         &setup_for(CurrentBetweenSamples::Linear),
-        &file_electro,
-        measurements,
-        &infos,
-        &documented_starts,
-    );
-    let interpolations: &[CurrentBetweenSamples] = if options.measured_current_input {
-        &[CurrentBetweenSamples::Linear]
-    } else {
-        &[CurrentBetweenSamples::Linear, CurrentBetweenSamples::Hold]
-    };
-    let estimate = estimate_nuisances(
-        &setup_for(CurrentBetweenSamples::Linear),
-        interpolations,
-        measurements,
-        &settles,
-        &dynamic,
-        &probe_lens,
-        &documented_starts,
-        &lead_ins,
-        &file_electro,
-        &file_mech,
+        options,
+        Experiments {
+            measurements,
+            infos: &infos,
+            settles: &settles,
+            dynamic: &dynamic,
+            documented_starts: &documented_starts,
+        },
+        (&file_electro, &file_mech),
     );
     record_starts(&mut infos, &documented_starts, &estimate);
     progress(1);
@@ -154,19 +131,12 @@ pub fn analyse(
         skew_samples: estimate.skew,
         ..file_mech
     };
-    let everything: Vec<usize> = (0..measurements.len()).collect();
-    let file_preds: Vec<Vec<f64>> = setup_for(estimate.interpolation).predict_all(
-        &file_electro,
-        &nuisance_mech,
+    let (file_preds, sensor_offset, nominal_rms_m) = file_predictions(
+        &setup_for(estimate.interpolation),
+        (&file_electro, &nuisance_mech),
         &data,
-        &everything,
+        &dynamic,
     );
-    let dyn_items: Vec<(&[f64], &[f64], usize)> = dynamic
-        .iter()
-        .map(|&k| (file_preds[k].as_slice(), data[k].measured_m, data[k].settle))
-        .collect();
-    let sensor_offset = offset_of(&dyn_items);
-    let nominal_rms_m = pooled_rms(&dyn_items, sensor_offset);
     // ---- Step 3: noise.
     let noise_m = noise_level(measurements, &dynamic, &settles, &file_preds);
     let nuisance = nuisance_report(&estimate, sensor_offset, &infos);
@@ -208,6 +178,91 @@ pub fn analyse(
         noise_m,
         where_,
     })
+}
+
+/// The experiments the diagnosis scores on: those with a fundamental of at least
+/// [`QUASI_STATIC_BELOW_HZ`], at least two (one to train on, one to hold out).
+fn dynamic_experiments(infos: &[ExperimentInfo]) -> Result<Vec<usize>, String> {
+    let dynamic: Vec<usize> = (0..infos.len())
+        .filter(|&k| !infos[k].quasi_static)
+        .collect();
+    if dynamic.len() < 2 {
+        return Err(format!(
+            "the diagnosis needs at least 2 dynamic experiments (fundamental >= {QUASI_STATIC_BELOW_HZ} Hz), got {}",
+            dynamic.len()
+        ));
+    }
+    Ok(dynamic)
+}
+
+/// The records and what step 1 found in them.
+#[derive(Clone, Copy)]
+struct Experiments<'a> {
+    measurements: &'a [Measurement],
+    infos: &'a [ExperimentInfo],
+    settles: &'a [usize],
+    dynamic: &'a [usize],
+    documented_starts: &'a [Option<StartState>],
+}
+
+/// Step 2: the recording's nuisances (start states, current between samples, channel skew)
+/// estimated with the parameter file's model `file` (electromagnetic, mechanical), each
+/// experiment that continues another starting from the memory its predecessor left.
+fn file_nuisances(
+    linear: &ModelSetup<'_>,
+    options: &DiagnoseOptions,
+    x: Experiments<'_>,
+    (file_electro, file_mech): (&Electro, &Mech),
+) -> NuisanceEstimate {
+    let probe_lens: Vec<usize> = (0..x.measurements.len())
+        .map(|k| {
+            (x.infos[k].settle_samples + options.fit.max_fit_samples).min(x.measurements[k].len())
+        })
+        .collect();
+    let lead_ins = lead_ins(
+        linear,
+        file_electro,
+        x.measurements,
+        x.infos,
+        x.documented_starts,
+    );
+    let interpolations: &[CurrentBetweenSamples] = if options.measured_current_input {
+        &[CurrentBetweenSamples::Linear]
+    } else {
+        &[CurrentBetweenSamples::Linear, CurrentBetweenSamples::Hold]
+    };
+    estimate_nuisances(
+        linear,
+        interpolations,
+        x.measurements,
+        x.settles,
+        x.dynamic,
+        &probe_lens,
+        x.documented_starts,
+        &lead_ins,
+        file_electro,
+        file_mech,
+    )
+}
+
+/// The parameter file's model with the nuisances on every experiment of `data`, without the
+/// sensor offset: `(predictions, sensor offset, pooled RMS residual over the dynamic
+/// experiments)`, m.
+fn file_predictions(
+    setup: &ModelSetup<'_>,
+    (file_electro, nuisance_mech): (&Electro, &Mech),
+    data: &[ExperimentData<'_>],
+    dynamic: &[usize],
+) -> (Vec<Vec<f64>>, f64, f64) {
+    let everything: Vec<usize> = (0..data.len()).collect();
+    let file_preds = setup.predict_all(file_electro, nuisance_mech, data, &everything);
+    let dyn_items: Vec<(&[f64], &[f64], usize)> = dynamic
+        .iter()
+        .map(|&k| (file_preds[k].as_slice(), data[k].measured_m, data[k].settle))
+        .collect();
+    let sensor_offset = offset_of(&dyn_items);
+    let nominal_rms_m = pooled_rms(&dyn_items, sensor_offset);
+    (file_preds, sensor_offset, nominal_rms_m)
 }
 
 /// The file name of a record (its path's last component).
