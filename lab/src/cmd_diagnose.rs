@@ -45,36 +45,66 @@ pub fn run(args: &Args) -> Result<()> {
         ..DiagnoseOptions::default()
     };
     let started = std::time::Instant::now();
+    let run = diagnose_with_progress(
+        &params,
+        &dataset.measurements,
+        documented.as_ref(),
+        &options,
+    )?;
+    let (json_path, md_path) = write_outputs(&run, args)?;
+    print_summary(&run.diagnosis);
+    println!(
+        "wrote {} and {} ({:.1} s)",
+        json_path.display(),
+        md_path.display(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// [`diagnose`] with a progress bar of model runs on the terminal.
+fn diagnose_with_progress(
+    params: &actuator_params::ActuatorParams,
+    measurements: &[maglab_dataset::data::Measurement],
+    documented: Option<&maglab_dataset::dataset_info::DatasetInfo>,
+    options: &DiagnoseOptions,
+) -> Result<DiagnosisRun> {
     // Work units: one per model evaluation (about 7 candidates × 150).
     let bar = ProgressBar::new(1000).with_style(
         ProgressStyle::with_template("diagnose {bar:40} {pos} model runs ({elapsed})")
             .map_err(|e| anyhow!("{e}"))?,
     );
-    let run = diagnose(
-        &params,
-        &dataset.measurements,
-        documented.as_ref(),
-        &options,
-        &|n| {
-            if bar.position() + n >= bar.length().unwrap_or(0) {
-                bar.inc_length(200);
-            }
-            bar.inc(n)
-        },
-    )
+    let run = diagnose(params, measurements, documented, options, &|n| {
+        if bar.position() + n >= bar.length().unwrap_or(0) {
+            bar.inc_length(200);
+        }
+        bar.inc(n)
+    })
     .map_err(|e| anyhow!(e))?;
     bar.finish_and_clear();
+    Ok(run)
+}
+
+/// Writes `diagnosis.json`, the plots and `report.md` into `args.out`; returns the paths of the
+/// JSON and the report.
+fn write_outputs(run: &DiagnosisRun, args: &Args) -> Result<(PathBuf, PathBuf)> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let json = serde_json::to_string_pretty(&run.diagnosis)?;
     let json_path = args.out.join("diagnosis.json");
     std::fs::write(&json_path, json)
         .with_context(|| format!("cannot write {}", json_path.display()))?;
-    let plots = plot_diagnose::write_all(&run, &args.out)?;
-    let md = report(&run, args, &plots);
+    let plots = plot_diagnose::write_all(run, &args.out)?;
+    let md = report(run, args, &plots);
     let md_path = args.out.join("report.md");
     std::fs::write(&md_path, md).with_context(|| format!("cannot write {}", md_path.display()))?;
-    let d = &run.diagnosis;
+    Ok((json_path, md_path))
+}
+
+/// The verdict and what a user acts on, on the terminal: the other candidates as good, the
+/// parameter file's warnings, the datasheet priors used, the advice, the nuisances and where
+/// the model disagrees.
+fn print_summary(d: &Diagnosis) {
     let named: Vec<&str> = std::iter::once(d.verdict.as_str())
         .chain(d.additional_effects.iter().map(|s| s.as_str()))
         .collect();
@@ -123,13 +153,6 @@ pub fn run(args: &Args) -> Result<()> {
     for s in &d.where_.summary {
         println!("  {s}");
     }
-    println!(
-        "wrote {} and {} ({:.1} s)",
-        json_path.display(),
-        md_path.display(),
-        started.elapsed().as_secs_f64()
-    );
-    Ok(())
 }
 
 /// The sentence on the other candidates that meet the naming criterion alone

@@ -9,7 +9,7 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
-use maglab_dataset::excitation::{forc_excitation, ExciteOptions};
+use maglab_dataset::excitation::{forc_excitation, Excitation, ExciteOptions};
 use maglab_dataset::records::{check_sine, sine_file_name, sine_record, soak_record, Sine};
 use maglab_dataset::StartState;
 use maglab_identify::design::{Design, Experiment, Grid};
@@ -178,13 +178,26 @@ fn forc(args: &Args, params: &actuator_params::ActuatorParams, origin: &str) -> 
     let c0 = params.actuator.coil_factor_per_m;
     let h: Vec<f64> = excitation.current_a.iter().map(|i| c0 * i).collect();
     let grid = Grid::uniform(options.h_min_a_per_m, options.h_max_a_per_m);
+    let unexcited = unexcited_cells(&grid, &h);
+    print_forc_summary(
+        params,
+        origin,
+        &grid,
+        (&excitation, sample_rate_hz),
+        &unexcited,
+    );
+    write_forc(args, params, origin, grid, &h, &excitation)
+}
+
+/// The grid cells the reversal sweep `h` (A/m), started from negative saturation, never switches.
+fn unexcited_cells(grid: &Grid, h: &[f64]) -> Vec<usize> {
     let zeros = vec![0.0; h.len()];
     let all = vec![true; h.len()];
     let design = Design::build(
-        &grid,
+        grid,
         &[Experiment {
             label: "excitation",
-            input: &h,
+            input: h,
             output: &zeros,
             selected: &all,
             initial: StartState::NegativeSaturation,
@@ -194,7 +207,19 @@ fn forc(args: &Args, params: &actuator_params::ActuatorParams, origin: &str) -> 
         1.0,
         1,
     );
-    let unexcited = design.unexcited();
+    design.unexcited()
+}
+
+/// The sweep's size, current range and cells on the terminal, with a warning when its current
+/// exceeds the file's limit.
+fn print_forc_summary(
+    params: &actuator_params::ActuatorParams,
+    origin: &str,
+    grid: &Grid,
+    (excitation, sample_rate_hz): (&Excitation, f64),
+    unexcited: &[usize],
+) {
+    let c0 = params.actuator.coil_factor_per_m;
     let (i_min, i_max) = excitation
         .current_a
         .iter()
@@ -227,6 +252,18 @@ fn forc(args: &Args, params: &actuator_params::ActuatorParams, origin: &str) -> 
             params.control.current_limit_a
         );
     }
+}
+
+/// Writes the sweep's current to `args.output`, or with `--predict-displacement` a dry-run
+/// record with the displacement the static model (6) predicts.
+fn write_forc(
+    args: &Args,
+    params: &actuator_params::ActuatorParams,
+    origin: &str,
+    grid: Grid,
+    h: &[f64],
+    excitation: &Excitation,
+) -> Result<()> {
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;
     }
@@ -242,7 +279,7 @@ fn forc(args: &Args, params: &actuator_params::ActuatorParams, origin: &str) -> 
             saturation_magnetization_a_per_m: params.actuator.saturation_magnetization_a_per_m,
         };
         let y: Vec<f64> = model
-            .predict(&h, StartState::NegativeSaturation)
+            .predict(h, StartState::NegativeSaturation)
             .iter()
             .map(|&m| statics.displacement_m(m))
             .collect();
