@@ -235,7 +235,11 @@ pub fn identify_dynamics(
     };
     let passes = Passes::new(
         linear,
-        (measurements, lead_in, documented),
+        Records {
+            measurements,
+            lead_in,
+            documented,
+        },
         &infos,
         fitted_set,
         options,
@@ -389,13 +393,16 @@ fn file_name(m: &Measurement) -> String {
 }
 
 /// What every pass shares: the model, the records, their starts, the fitted experiments.
-/// The measurements in recording order, the record the first was recorded right after, and
-/// `dataset.json`.
-type Records<'a> = (
-    &'a [Measurement],
-    Option<&'a Measurement>,
-    Option<&'a DatasetInfo>,
-);
+/// The records a dynamic identification is made from ([`identify_dynamics`]).
+#[derive(Clone, Copy)]
+struct Records<'a> {
+    /// The measurements, in recording order.
+    measurements: &'a [Measurement],
+    /// The record the first of them was recorded right after, if any.
+    lead_in: Option<&'a Measurement>,
+    /// The dataset's `dataset.json`, when it has one.
+    documented: Option<&'a DatasetInfo>,
+}
 
 struct Passes<'a> {
     linear: ModelSetup<'a>,
@@ -429,8 +436,7 @@ impl<'a> Passes<'a> {
     /// The passes' shared inputs: the records, their documented starts, how much of each the
     /// nuisance estimate probes, the current between samples it may choose and the instruments
     /// the base file's datasheet puts beside the rod (fitted from their datasheet values).
-    /// `records` are the measurements in recording order, the record before the first and
-    /// `dataset.json` ([`identify_dynamics`]); `fitted_set` the experiments the fit trains on.
+    /// `fitted_set` are the experiments the fit trains on.
     fn new(
         linear: ModelSetup<'a>,
         records: Records<'a>,
@@ -438,7 +444,11 @@ impl<'a> Passes<'a> {
         fitted_set: Vec<usize>,
         options: &'a IdentificationOptions,
     ) -> Self {
-        let (measurements, lead_in, documented) = records;
+        let Records {
+            measurements,
+            lead_in,
+            documented,
+        } = records;
         let nominal = linear.nominal;
         let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
         let instruments = nominal.priors.instruments(options.measured_current_input);

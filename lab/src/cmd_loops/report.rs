@@ -88,7 +88,6 @@ fn print_branches(loaded: &LoadedParams, measure: &PreisachMeasure, set: &LoopSe
         total / 1e3,
         100.0 * total / m_s
     );
-
     Ok(())
 }
 
