@@ -61,6 +61,14 @@ pub fn nominal_for_data(
     nominal
 }
 
+/// The indices of the dynamic experiments: those with a fundamental of at least
+/// [`QUASI_STATIC_BELOW_HZ`], the ones R_eddy, ξ, f0 show in.
+pub fn dynamic_indices(infos: &[ExperimentInfo]) -> Vec<usize> {
+    (0..infos.len())
+        .filter(|&k| !infos[k].quasi_static)
+        .collect()
+}
+
 /// Peak-to-peak displacement over the records `which`, m.
 pub fn displacement_range(measurements: &[Measurement], which: &[usize]) -> f64 {
     let (lo, hi) = which

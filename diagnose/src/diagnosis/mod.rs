@@ -513,7 +513,7 @@ fn assemble(a: Assembly<'_>) -> DiagnosisRun {
         coil_current_measured,
     );
     reason = with_grade(reason, &graded, &verdict_effects, coil_current_measured);
-    let dynamic_count = rec.infos.iter().filter(|i| !i.quasi_static).count();
+    let dynamic_count = rec.dynamic.len();
     let unmeasured_loops_warning = coverage::warning(&unmeasured_loops, dynamic_count);
     if unmeasured_loops_warning.is_some() && name != "none" {
         reason = format!(

@@ -11,8 +11,8 @@ use maglab_dataset::data::Measurement;
 use maglab_dataset::dataset_info::DatasetInfo;
 use maglab_dataset::{CurrentBetweenSamples, StartState};
 use maglab_model::experiments::{
-    describe, displacement_range, experiment_data, nominal_for_data, ExperimentInfo,
-    QUASI_STATIC_BELOW_HZ,
+    describe, displacement_range, dynamic_indices, experiment_data, nominal_for_data,
+    ExperimentInfo, QUASI_STATIC_BELOW_HZ,
 };
 use maglab_model::fit::{ExperimentData, ModelSetup};
 use maglab_model::model::{Electro, Mech, Memory, ModelStart, Nominal};
@@ -183,9 +183,7 @@ pub fn analyse(
 /// The experiments the diagnosis scores on: those with a fundamental of at least
 /// [`QUASI_STATIC_BELOW_HZ`], at least two (one to train on, one to hold out).
 fn dynamic_experiments(infos: &[ExperimentInfo]) -> Result<Vec<usize>, String> {
-    let dynamic: Vec<usize> = (0..infos.len())
-        .filter(|&k| !infos[k].quasi_static)
-        .collect();
+    let dynamic = dynamic_indices(infos);
     if dynamic.len() < 2 {
         return Err(format!(
             "the diagnosis needs at least 2 dynamic experiments (fundamental >= {QUASI_STATIC_BELOW_HZ} Hz), got {}",

@@ -24,7 +24,8 @@ use maglab_model::candidates::{
     effect_parameters, model_parameters, Candidate, COMMON_PARAMETER_COUNT, IDENTIFICATION_RANGE,
 };
 use maglab_model::experiments::{
-    describe, experiment_data, nominal_for_data, ExperimentInfo, QUASI_STATIC_BELOW_HZ,
+    describe, dynamic_indices, experiment_data, nominal_for_data, ExperimentInfo,
+    QUASI_STATIC_BELOW_HZ,
 };
 use maglab_model::fit::{FitSettings, ModelSetup};
 use maglab_model::nuisance::{estimate_nuisances, lead_in_memory, NuisanceEstimate};
@@ -263,9 +264,7 @@ pub fn identify_dynamics(
 /// The experiments R_eddy, ξ, f0 are fitted on: those with a fundamental of at least
 /// [`QUASI_STATIC_BELOW_HZ`]; an error when there are none.
 fn dynamic_experiments(infos: &[ExperimentInfo]) -> Result<Vec<usize>, String> {
-    let dynamic: Vec<usize> = (0..infos.len())
-        .filter(|&k| infos[k].fundamental_hz >= QUASI_STATIC_BELOW_HZ)
-        .collect();
+    let dynamic = dynamic_indices(infos);
     if dynamic.is_empty() {
         return Err(format!(
             "no experiment has a fundamental >= {QUASI_STATIC_BELOW_HZ} Hz: R_eddy, xi, f0 need \

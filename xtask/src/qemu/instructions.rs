@@ -3,6 +3,8 @@
 
 use super::capture::{self, Record};
 use anyhow::{ensure, Context, Result};
+use magctl::board::capture_phase::CapturePhase;
+use magctl::inverse::CommandFlags;
 use magctl::params::BAKED_PARAMETERS;
 use std::path::Path;
 
@@ -27,45 +29,43 @@ pub fn stats(mut v: Vec<f64>) -> (f64, f64, f64) {
     (v[0], median, v[n - 1])
 }
 
-/// The capture's phases (`Record::phase`) after the calibration, in the order the firmware
-/// runs them.
-mod phase {
-    pub const DYNAMIC: u8 = 1;
-    pub const STATIC: u8 = 2;
-    pub const NAIVE: u8 = 3;
-    pub const MERGE: u8 = 4;
-    pub const EVERETT: u8 = 5;
-    pub const RELAY: u8 = 6;
-}
-
 /// The rows of the instructions table: phase and label, in the summary's order (ours, then the
 /// peers').
-const TABLE: [(u8, &str); 6] = [
-    (phase::DYNAMIC, "dynamic inverse, exact Preisach inverse:"),
-    (phase::STATIC, "static inverse,  exact Preisach inverse:"),
+const TABLE: [(CapturePhase, &str); 6] = [
     (
-        phase::MERGE,
+        CapturePhase::Dynamic,
+        "dynamic inverse, exact Preisach inverse:",
+    ),
+    (
+        CapturePhase::Static,
+        "static inverse,  exact Preisach inverse:",
+    ),
+    (
+        CapturePhase::Merge,
         "merge stress (dynamic inverse, staircase full, no trajectory step):",
     ),
-    (phase::NAIVE, "dynamic inverse, naive (bisection):     "),
     (
-        phase::EVERETT,
+        CapturePhase::Naive,
+        "dynamic inverse, naive (bisection):     ",
+    ),
+    (
+        CapturePhase::EverettBisection,
         "dynamic inverse, Everett + bisection (openCFS-style):",
     ),
     (
-        phase::RELAY,
+        CapturePhase::RelayGrid,
         "dynamic inverse, relay grid + bisection (5,050 relays):",
     ),
 ];
 
-/// The calibration record (phase 0): two timed blocks that differ by exactly `index` nops take
+/// The calibration record (`CapturePhase::Calibration`): two timed blocks that differ by exactly `index` nops take
 /// `index` × [`TICKS_PER_INSTRUCTION`] SysTick ticks more. The surrounding reads may differ by
 /// one instruction depending on code generation, and SysTick rounds to whole ticks: ±(1
 /// instruction + 1 tick) is accepted.
 fn check_calibration(records: &[Record], summary: &mut String) -> Result<()> {
     let cal = records
         .first()
-        .filter(|r| r.phase == 0)
+        .filter(|r| r.phase == CapturePhase::Calibration.code())
         .context("no calibration record")?;
     let ticks_per_instruction = cal.ticks as f64 / cal.index as f64;
     let expected_ticks = cal.index as f64 * TICKS_PER_INSTRUCTION;
@@ -101,38 +101,45 @@ pub(super) fn check_instructions(
 ) -> Result<(Vec<Record>, Vec<Record>)> {
     check_calibration(records, summary)?;
     let rate = BAKED_PARAMETERS.control.sample_rate_hz as f64;
-    let of_phase = |k: u8| {
+    let of_phase = |phase: CapturePhase| {
         records
             .iter()
-            .filter(|r| r.phase == k)
+            .filter(|r| r.phase == phase.code())
             .copied()
             .collect::<Vec<_>>()
     };
-    let (dynamic, stat) = (of_phase(phase::DYNAMIC), of_phase(phase::STATIC));
+    let (dynamic, stat) = (
+        of_phase(CapturePhase::Dynamic),
+        of_phase(CapturePhase::Static),
+    );
     ensure!(
         dynamic.len() as f64 >= rate && stat.len() as f64 >= rate,
         "less than 1 s of control time captured"
     );
     say!(summary, "instructions per interrupt (min / median / max):");
     let mut counted = std::collections::BTreeMap::new();
-    for (k, label) in TABLE {
-        let rs = of_phase(k);
-        ensure!(!rs.is_empty(), "no records of phase {k} ({label})");
+    for (phase, label) in TABLE {
+        let rs = of_phase(phase);
+        ensure!(
+            !rs.is_empty(),
+            "no records of phase {} ({label})",
+            phase.name()
+        );
         let (lo, median, hi) = instructions(&rs);
         say!(
             summary,
             "  {label} {lo:.0} / {median:.0} / {hi:.0}  ({} interrupts)",
             rs.len()
         );
-        counted.insert(k, (lo, median, hi));
+        counted.insert(phase.code(), (lo, median, hi));
     }
-    let ours = counted[&phase::DYNAMIC];
-    for (k, name, digits) in [
-        (phase::EVERETT, "Everett bisection", 1),
-        (phase::RELAY, "relay grid", 0),
-        (phase::NAIVE, "naive (strawman)", 0),
+    let ours = counted[&CapturePhase::Dynamic.code()];
+    for (phase, name, digits) in [
+        (CapturePhase::EverettBisection, "Everett bisection", 1),
+        (CapturePhase::RelayGrid, "relay grid", 0),
+        (CapturePhase::Naive, "naive (strawman)", 0),
     ] {
-        let peer = counted[&k];
+        let peer = counted[&phase.code()];
         say!(
             summary,
             "  {name} / ours: median {:.digits$}x, worst case {:.digits$}x",
@@ -148,7 +155,10 @@ pub(super) fn check_instructions(
         say!(summary, "  {line}");
     }
     let overruns = records.iter().map(|r| r.overruns).max().unwrap_or(0);
-    let faults = records.iter().filter(|r| r.flags & 8 != 0).count();
+    let faults = records
+        .iter()
+        .filter(|r| r.flags & CommandFlags::FAULT != 0)
+        .count();
     say!(summary, "overruns {overruns}, fault flags {faults}");
     ensure!(
         overruns == 0 && faults == 0,
@@ -160,12 +170,12 @@ pub(super) fn check_instructions(
         "wrote out/qemu/capture.csv ({} rows)",
         records.len() - 1
     );
-    let stat_worst = counted[&phase::STATIC].2;
+    let stat_worst = counted[&CapturePhase::Static.code()].2;
     ensure!(
         ours.2 <= MAX_INSTRUCTIONS && stat_worst <= MAX_INSTRUCTIONS,
         "worst case above {MAX_INSTRUCTIONS} instructions"
     );
-    let merge_worst = counted[&phase::MERGE].2;
+    let merge_worst = counted[&CapturePhase::Merge.code()].2;
     ensure!(
         merge_worst <= MAX_MERGE_INSTRUCTIONS,
         "merge-stress worst case {merge_worst:.0} above {MAX_MERGE_INSTRUCTIONS} instructions"
