@@ -17,7 +17,7 @@
 //! that error is 0.5 % of the motion, above the noise-based threshold (0.2 %): the diagnosis
 //! then starts again with twice the substeps, where the gap falls within the noise.
 mod common;
-use common::maglab;
+use common::{maglab, SHORT_SINES_ARGS};
 
 /// Records a noise-free dataset without an effect (`rig_args` added), diagnoses it with the
 /// plant's own file and returns `diagnosis.json` and the report's text.
@@ -54,16 +54,8 @@ fn diagnose_noise_free(rig_args: &[&str]) -> (serde_json::Value, String) {
 
 #[test]
 fn a_noise_free_dataset_without_an_effect_is_none_within_the_models_integration_error() {
-    // Five frequencies through the rod's resonance region, two amplitudes (a CI budget; the
-    // the docs' 8 x 2 dataset gives the same verdict).
-    let (d, text) = diagnose_noise_free(&[
-        "--freq",
-        "20,50,100,200,400",
-        "--amplitude-a",
-        "0.2,0.4",
-        "--duration-s",
-        "0.5",
-    ]);
+    // The short sine set (the docs' 8 x 2 dataset gives the same verdict).
+    let (d, text) = diagnose_noise_free(&SHORT_SINES_ARGS);
     let model_error_m = d["model_error_m"].as_f64().expect("model_error_m");
     let gap_m = d["refitted_nominal"]["systematic_before_m"]
         .as_f64()

@@ -53,7 +53,7 @@ fn bench(c: &mut Criterion) {
         (
             "amplifier_bandwidth",
             Electro {
-                amplifier: Some((800.0, 0.7)),
+                amplifier: Some((800.0, 0.7, 0.0)),
                 ..electro
             },
             mech,

@@ -15,7 +15,7 @@
 //! |---|---|---|
 //! | `nominal` | — | eqs (4)-(5) |
 //! | `eddy_frequency_dependence` | `hf_to_dc_ratio`, `corner_hz`, `anchor` | `R_eddy` going from `R_dc` below the corner to `R_hf = ratio · R_dc` above it (one extra eddy path), the refitted `R` between them: `ln R = ln R_dc + anchor · ln ratio` (a level change is the refit's, not a frequency dependence); its richer form ([`RICHER_FORM`], in a pair of the second stage only) adds a second path, `hf_to_dc_ratio` and `corner_hz` of its own, and the anchor spans the whole step |
-//! | `amplifier_bandwidth` | `natural_hz`, `damping_ratio` | second-order low-pass on the current |
+//! | `amplifier_bandwidth` | `natural_hz`, `damping_ratio`, `coil_time_constant_s` | a current loop around the coil ([`crate::model::CurrentLoop`]): the command through the closed loop's response `T`, and `1 − T` of the coil's flux EMF (`τ_L/c0) w'` left in the current; at `τ_L = 0` a second-order low-pass on the current |
 //! | `sensor_dynamics` | `natural_hz`, `damping_ratio`, `delay_s` | second-order low-pass and a delay on the reading |
 //! | `reversible_magnetization` | `susceptibility`, `saturation_field_a_per_m`, `shape` | `χ_r H / (1 + |H/H_s|^p)^(1/p)` |
 //! | `thermal_drift` | `time_constant_s`, `lag_s`, `gain_loss_per_a2`, `strain_per_a2` | coil `τ θ' = I² − θ`, rod `τ_l φ' = θ − φ` (carried over between chained experiments); gain `max(0, 1 − g φ)` (the fraction of λ_s the warm rod keeps), strain `e φ`; `τ` at least two periods of the slowest dynamic excitation ([`thermal_time_constant_min_s`]) |
@@ -344,6 +344,9 @@ pub fn library_parameters(effect: EffectName, nominal: &Nominal) -> Vec<ParamSpe
         EffectName::AmplifierBandwidth => vec![
             spec("natural_hz", 50.0, 50_000.0, true, A, Edge::Low),
             spec("damping_ratio", 0.3, 3.0, true, A, Edge::None),
+            // From an ideal current source (0) to a coil L/R of 2 ms, a large coil's for a rod
+            // of this size; linear, so the ideal source is inside the range.
+            spec("coil_time_constant_s", 0.0, 2e-3, false, A, Edge::None),
         ],
         EffectName::SensorDynamics => vec![
             spec("natural_hz", 100.0, 50_000.0, true, B, Edge::Low),
@@ -503,8 +506,13 @@ pub fn effect_starts(effect: EffectName, nominal: &Nominal) -> Vec<Vec<f64>> {
             }
         }
         EffectName::AmplifierBandwidth => {
+            // An ideal current source and a coil of 0.5 ms (the middle of 0.1–1 ms, a bench
+            // coil's on this rod): from the ideal source alone the command's lag can settle
+            // where it fits part of a PI loop's gap and never reach the loop's EMF term.
             for f in [300.0, 1000.0, 3000.0] {
-                out.push(vec![f, 0.7]);
+                for tau_l in [0.0, 5e-4] {
+                    out.push(vec![f, 0.7, tau_l]);
+                }
             }
         }
         EffectName::SensorDynamics => {
@@ -573,7 +581,7 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
                 e.eddy_path = Some((v[0], v[1]));
                 eddy_anchor = Some(v[2]);
             }
-            EffectName::AmplifierBandwidth => e.amplifier = Some((v[0], v[1])),
+            EffectName::AmplifierBandwidth => e.amplifier = Some((v[0], v[1], v[2])),
             EffectName::SensorDynamics => m.sensor = Some((v[0], v[1], v[2])),
             EffectName::ReversibleMagnetization => e.reversible = Some((v[0], v[1], v[2])),
             EffectName::ThermalDrift => m.thermal = Some((v[0], v[1], v[2], v[3])),
@@ -596,8 +604,8 @@ pub fn model_parameters(candidate: &Candidate, values: &[f64]) -> (Electro, Mech
 /// Number of parameters of an effect.
 pub fn effect_parameter_count(effect: EffectName) -> usize {
     match effect {
-        EffectName::AmplifierBandwidth => 2,
         EffectName::EddyFrequencyDependence
+        | EffectName::AmplifierBandwidth
         | EffectName::ReversibleMagnetization
         | EffectName::SensorDynamics
         | EffectName::MechanicalLoad => 3,

@@ -4,7 +4,8 @@
 //! It runs in two stages so that a fit can reuse the expensive one:
 //!
 //! 1. **Electromagnetic stage** ([`run_electro`]; parameters [`Electro`]): command → coil current
-//!    (held or linear between samples; `amplifier_bandwidth`: second-order low-pass) → eddy
+//!    (held or linear between samples; `amplifier_bandwidth`: a current loop around the coil,
+//!    [`CurrentLoop`], whose command response filters it and whose EMF term joins `Z`) → eddy
 //!    currents and hysteresis → `M` at every substep. The hysteresis is the core's f32 Preisach
 //!    operator (`magctl::preisach`, exact monotone solve of `a·h + Γ(h) = r`). The eddy step is
 //!    backward Euler on the integral form (8), `w = H + M`, L-stable and monotone:
@@ -47,7 +48,9 @@ use maglab_dataset::{CurrentBetweenSamples, StartState};
 use std::borrow::Cow;
 use std::f64::consts::PI;
 
+mod current_loop;
 mod rod;
+pub use current_loop::CurrentLoop;
 pub use rod::{track_mech, track_mech_lanes};
 
 /// Staircase capacity of the model's Preisach memory (deep histories such as a chain of
@@ -146,8 +149,9 @@ impl ModelStart {
 pub struct Electro {
     /// `R_eddy` at low frequency, Ω.
     pub eddy_resistance_ohm: f64,
-    /// Second-order low-pass on the current: `(natural frequency Hz, damping ratio)`.
-    pub amplifier: Option<(f64, f64)>,
+    /// The current loop ([`CurrentLoop`]): `(natural frequency Hz, damping ratio, coil time
+    /// constant τ_L s)`; at `τ_L = 0` a second-order low-pass on the current.
+    pub amplifier: Option<(f64, f64, f64)>,
     /// One extra eddy path: `(R_hf / R_dc, corner Hz)`.
     pub eddy_path: Option<(f64, f64)>,
     /// A second extra eddy path (the richer form of `eddy_frequency_dependence`, see
@@ -340,16 +344,20 @@ fn electro_once(
 ) -> (Vec<f64>, Vec<f64>, Memory) {
     // The second eddy path is a compile-time switch: as a run-time one it cost the substep loop
     // of every other model about 18 % of a diagnosis' time (measured on the blind suite).
-    let run = if e.second_eddy_path.is_some() {
-        electro_steps::<true>
-    } else {
-        electro_steps::<false>
+    // So is the current loop's EMF term (an amplifier with `τ_L > 0`).
+    let emf = matches!(e.amplifier, Some((_, _, tau_l)) if tau_l > 0.0);
+    let run = match (e.second_eddy_path.is_some(), emf) {
+        (false, false) => electro_steps::<false, false>,
+        (true, false) => electro_steps::<true, false>,
+        (false, true) => electro_steps::<false, true>,
+        (true, true) => electro_steps::<true, true>,
     };
     run(setup, e, drive, s)
 }
 
-/// [`electro_once`] with or without the second eddy path's state.
-fn electro_steps<const SECOND_PATH: bool>(
+/// [`electro_once`] with or without the second eddy path's state and the current loop's EMF
+/// term ([`CurrentLoop`]).
+fn electro_steps<const SECOND_PATH: bool, const EMF: bool>(
     setup: &ModelSetup<'_>,
     e: &Electro,
     drive: ElectroDrive<'_>,
@@ -383,14 +391,22 @@ fn electro_steps<const SECOND_PATH: bool>(
                 .sum::<f64>()
         }
     };
-    let drive = delta / (kappa * z_hf);
+    // The current loop with an EMF term (`EMF`): its command response `T` and its EMF filter
+    // ([`CurrentLoop`]); without one, an amplifier is the exact discretization of
+    // i'' = ω²(c − i) − 2ζω i' for c linear over a substep.
+    let current_loop = match e.amplifier {
+        Some((f, zeta, tau_l)) if EMF => Some(CurrentLoop::new(f, zeta, tau_l, c0, delta)),
+        _ => None,
+    };
+    let emf_impedance = current_loop.map_or(0.0, |l| l.implicit_impedance());
+    let drive = delta / (kappa * z_hf + emf_impedance);
     let [path, second_path] = paths;
     let keep = |p: Option<(f64, f64)>| p.map_or(0.0, |(tau, _)| tau / (tau + delta));
     let (q_keep, second_q_keep) = (keep(path), keep(second_path));
-    // Amplifier: exact discretization of i'' = ω²(c − i) − 2ζω i' for c linear over a substep.
-    let amp = e
-        .amplifier
-        .map(|(f, zeta)| second_order(2.0 * PI * f, zeta, delta));
+    let amp = match e.amplifier {
+        Some((f, zeta, _)) if !EMF => Some(second_order(2.0 * PI * f, zeta, delta)),
+        _ => None,
+    };
     let mut memory = start_memory(nominal, measure, start, previous);
     let first = currents_a[0];
     let (i_start, h0) = match start {
@@ -406,7 +422,11 @@ fn electro_steps<const SECOND_PATH: bool>(
     let mut rev_at_h = reversible(e.reversible, h);
     let mut m = g0 + rev_at_h.0;
     let (mut q, mut second_q) = (0.0f64, 0.0f64);
-    let mut amp_state = [i_start, 0.0f64];
+    let mut amp_state = match &current_loop {
+        Some(l) => l.rest(i_start),
+        None => [i_start, 0.0f64],
+    };
+    let mut emf_state = [0.0f64; 2];
     let mut m_out = Vec::with_capacity(1 + n * s);
     let mut i2_out = Vec::with_capacity(n * s);
     m_out.push(m);
@@ -421,8 +441,17 @@ fn electro_steps<const SECOND_PATH: bool>(
             let fb = (j + 1) as f64 / s as f64;
             let (u0, u1) = (c_a + (c_b - c_a) * fa, c_a + (c_b - c_a) * fb);
             // Coil current: its mean and mean square over the substep.
-            let (i_mean, i2) = match &amp {
-                Some(a) => {
+            let (i_mean, i2) = match (&amp, &current_loop) {
+                (_, Some(l)) => {
+                    let before = l.output(amp_state);
+                    amp_state = l.advance(amp_state, u0, u1);
+                    let after = l.output(amp_state);
+                    (
+                        0.5 * (before + after),
+                        (before * before + before * after + after * after) / 3.0,
+                    )
+                }
+                (Some(a), None) => {
                     let before = amp_state[0];
                     amp_state = a.step(amp_state, u0, u1);
                     let mean = 0.5 * (before + amp_state[0]);
@@ -432,7 +461,7 @@ fn electro_steps<const SECOND_PATH: bool>(
                             / 3.0,
                     )
                 }
-                None => ((u0 + u1) * 0.5, (u0 * u0 + u0 * u1 + u1 * u1) / 3.0),
+                (None, None) => ((u0 + u1) * 0.5, (u0 * u0 + u0 * u1 + u1 * u1) / 3.0),
             };
             let (mrev, chi) = rev_at_h;
             // w_rev = (1 + χ) H + Γ(H) with the reversible part linearized at H.
@@ -442,7 +471,11 @@ fn electro_steps<const SECOND_PATH: bool>(
             } else {
                 q_keep * q
             };
-            let rhs = (1.0 + chi) * h + gamma + drive * (i_mean - eddy);
+            let loop_current = match (EMF, &current_loop) {
+                (true, Some(l)) => l.explicit_current(emf_state),
+                _ => 0.0,
+            };
+            let rhs = (1.0 + chi) * h + gamma + drive * (i_mean - eddy + loop_current);
             let slope = (1.0 + chi + drive / c0) as f32;
             let (h_new, g_new) = match measure.solve(&mut memory, slope, rhs as f32) {
                 Ok(sol) => (sol.h_a_per_m as f64, sol.m_a_per_m as f64),
@@ -456,6 +489,17 @@ fn electro_steps<const SECOND_PATH: bool>(
             if let (true, Some((tau, dz))) = (SECOND_PATH, second_path) {
                 second_q = (tau * second_q + dz * w_change) / (tau + delta);
             }
+            // The EMF current the loop leaves, constant over the substep (backward Euler):
+            // `E[(i − g)²] = E[i²] − 2 g E[i] + g²`.
+            let i2 = match (EMF, &current_loop) {
+                (true, Some(l)) => {
+                    let w_rate = w_change / delta;
+                    let g = l.emf_current(emf_state, w_rate);
+                    emf_state = l.advance(emf_state, w_rate, w_rate);
+                    i2 - 2.0 * g * i_mean + g * g
+                }
+                _ => i2,
+            };
             h = h_new;
             m = g_new + rev_at_h.0;
             m_out.push(m);

@@ -9,7 +9,7 @@
 //! | `sensor_delay_s` | `sensor_dynamics.delay_s` | `value ± plus_minus`, cut at 0 |
 //! | `amplifier_bandwidth_hz` | `amplifier_bandwidth.natural_hz` | as the sensor's bandwidth |
 //! | `load_mass_kg` | `mechanical_load.mass_ratio` | `m / m_eff`, `m_eff` a third of the rod's mass (below) |
-//! | `coil_resistance_ohm`, `coil_inductance_h` | none | the library's amplifier is the closed current loop's response: the coil's R and L do not appear in it |
+//! | `coil_resistance_ohm`, `coil_inductance_h` | none | the amplifier's `coil_time_constant_s` ([`crate::model::CurrentLoop`]) is `L/R` without the rod's magnetization (`L = μ0 N A c0`; the model adds the rod's `M` itself), a datasheet's inductance is measured with the rod inside |
 //!
 //! **A −3 dB bandwidth as a natural frequency.** The library's sensor and amplifier are
 //! second-order low-passes `ωn² / (s² + 2ζωn s + ωn²)`, whose −3 dB frequency is `ωn g(ζ)` with
@@ -179,7 +179,8 @@ impl Priors {
     /// parameters as [`Priors::narrow`] left them): a natural frequency at the datasheet's
     /// bandwidth (ζ = 1/√2 maps one onto the other), a delay at the datasheet's value, a load at
     /// its mass ratio, a damping ratio at 1/√2; a parameter without a datasheet value at the
-    /// middle of its range (geometric for a log-scaled one), a delay at 0.
+    /// middle of its range (geometric for a log-scaled one), a delay at 0, the amplifier's coil
+    /// time constant at 0 (an ideal current source until the data ask for the coil's EMF).
     pub fn start(&self, effect: EffectName, specs: &[ParamSpec]) -> Vec<f64> {
         specs
             .iter()
@@ -191,7 +192,7 @@ impl Priors {
                 let v = match (given, s.name) {
                     (Some(v), _) => v,
                     (None, "damping_ratio") => std::f64::consts::FRAC_1_SQRT_2,
-                    (None, "delay_s") => s.lo,
+                    (None, "delay_s" | "coil_time_constant_s") => s.lo,
                     (None, _) if s.log => (s.lo * s.hi).sqrt(),
                     (None, _) => 0.5 * (s.lo + s.hi),
                 };
@@ -219,9 +220,10 @@ impl Priors {
                         }
                     }
                     None => Err(
-                        "no candidate's form has it: the library's amplifier is the \
-                                 closed current loop's response, in which the coil's R and L do \
-                                 not appear"
+                        "no candidate parameter is it: the amplifier's coil_time_constant_s is \
+                         L/R without the rod's magnetization (L = mu0 N A c0, the model adds \
+                         the rod's M itself), while a datasheet's inductance is measured with the \
+                         rod inside"
                             .into(),
                     ),
                 };

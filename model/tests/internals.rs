@@ -131,11 +131,11 @@ mod candidates {
         );
         assert_eq!(pair.without(eddy), Candidate::single(amp));
         let values = [
-            60.0, 0.7, 400.0, 0.0, 900.0, 0.7, 3.0, 100.0, 0.5, 2.0, 1000.0,
+            60.0, 0.7, 400.0, 0.0, 900.0, 0.7, 0.0, 3.0, 100.0, 0.5, 2.0, 1000.0,
         ];
         assert_eq!(parameters(&pair, &n, &REFIT_RANGE).len(), values.len());
         let (e, _) = model_parameters(&pair, &values);
-        assert_eq!(e.amplifier, Some((900.0, 0.7)));
+        assert_eq!(e.amplifier, Some((900.0, 0.7, 0.0)));
         assert_eq!(e.second_eddy_path, Some((2.0, 1000.0)));
         // Only effects with a richer form have a second term.
         assert!(second_term_parameters(amp, &n).is_empty());
@@ -239,9 +239,9 @@ mod fit {
         }
         .with_richer(eddy);
         let specs = candidates::parameters(&candidate, &n, &candidates::REFIT_RANGE);
-        // Common, eddy (3), amplifier (2), eddy's second path (2).
+        // Common, eddy (3), amplifier (3), eddy's second path (2).
         let values = vec![
-            60.0, 0.7, 400.0, 0.1, 3.0, 100.0, 0.5, 900.0, 0.8, 2.0, 1000.0,
+            60.0, 0.7, 400.0, 0.1, 3.0, 100.0, 0.5, 900.0, 0.8, 2e-4, 2.0, 1000.0,
         ];
         assert_eq!(specs.len(), values.len());
         let f = Fitted {
@@ -253,7 +253,10 @@ mod fit {
         };
         let amp_only = f.without(eddy);
         assert_eq!(amp_only.candidate, Candidate::single(amp));
-        assert_eq!(amp_only.values, vec![60.0, 0.7, 400.0, 0.1, 900.0, 0.8]);
+        assert_eq!(
+            amp_only.values,
+            vec![60.0, 0.7, 400.0, 0.1, 900.0, 0.8, 2e-4]
+        );
         let richer_eddy = f.without(amp);
         assert_eq!(
             richer_eddy.candidate.name(),
@@ -269,7 +272,7 @@ mod fit {
             one_path.candidate.name(),
             "eddy_frequency_dependence+amplifier_bandwidth"
         );
-        assert_eq!(one_path.values.len(), 9);
+        assert_eq!(one_path.values.len(), 10);
         assert_eq!(
             f.report_names().last().map(String::as_str),
             Some("eddy_frequency_dependence.second_path.corner_hz")
@@ -596,30 +599,43 @@ mod model {
         assert_eq!(eddy_paths(z_dc, None, None), (z_dc, [None, None]));
     }
 
-    #[test]
-    fn a_second_eddy_path_that_steps_nothing_is_the_one_path_model() {
-        // Its share of Z is zero, so the two-path step (the general κ) must reproduce the
-        // one-path step to rounding.
-        let (nominal, measure) = paper_model();
+    /// The electromagnetic stage of `e` on a 220 Hz sine of 0.3 ± 0.25 A (1500 samples at
+    /// 10 kHz, two substeps, the current linear between samples) from `start`.
+    fn on_a_sine(
+        nominal: &Nominal,
+        measure: &PreisachMeasure,
+        start: StartState,
+        e: &Electro,
+    ) -> ElectroRun {
         let step_s = 1e-4;
         let currents: Vec<f64> = (0..1500)
             .map(|k| 0.3 + 0.25 * (2.0 * PI * 220.0 * k as f64 * step_s).sin())
             .collect();
         let setup = ModelSetup {
-            nominal: &nominal,
-            measure: &measure,
+            nominal,
+            measure,
             step_s,
             interpolation: CurrentBetweenSamples::Linear,
             substeps: 2,
             single_run: false,
         };
-        let start = ModelStart::State(StartState::SwitchOnDemagnetized);
+        let start = ModelStart::State(start);
         let drive = ElectroDrive {
             currents_a: &currents,
             start: &start,
             previous: None,
         };
-        let run = |e: &Electro| run_electro(&setup, e, drive).m_a_per_m;
+        run_electro(&setup, e, drive)
+    }
+
+    #[test]
+    fn a_second_eddy_path_that_steps_nothing_is_the_one_path_model() {
+        // Its share of Z is zero, so the two-path step (the general κ) must reproduce the
+        // one-path step to rounding.
+        let (nominal, measure) = paper_model();
+        let run = |e: &Electro| {
+            on_a_sine(&nominal, &measure, StartState::SwitchOnDemagnetized, e).m_a_per_m
+        };
         let mut one = Electro::nominal(nominal.eddy_resistance_ohm);
         one.eddy_path = Some((3.0, 150.0));
         let mut two = one;
@@ -633,6 +649,54 @@ mod model {
         let c = run(&two);
         let moved = max_difference(&a, &c);
         assert!(moved > 1e-3 * scale, "{moved:e} of {scale:e}");
+    }
+
+    #[test]
+    fn a_current_loop_around_a_coil_without_inductance_is_the_second_order_low_pass() {
+        // τ_L → 0 takes the loop's EMF path (its own discretization of T) to the low-pass one.
+        let (nominal, measure) = paper_model();
+        let run = |e: &Electro| on_a_sine(&nominal, &measure, StartState::NegativeSaturation, e);
+        let mut low_pass = Electro::nominal(nominal.eddy_resistance_ohm);
+        low_pass.amplifier = Some((600.0, 0.8, 0.0));
+        let mut current_loop = low_pass;
+        current_loop.amplifier = Some((600.0, 0.8, 1e-12));
+        let (a, b) = (run(&low_pass), run(&current_loop));
+        let scale = a.m_a_per_m.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let worst = max_difference(&a.m_a_per_m, &b.m_a_per_m);
+        // The two discretizations of T differ in the last bits; the core's f32 solve rounds
+        // the difference to its own step (6e-8 relative) and carries it over the substeps.
+        assert!(worst <= 1e-5 * scale, "{worst:e} of {scale:e}");
+        // The matrix exponentials of the two realizations (states scaled by ωn² apart) agree to
+        // about 1e-8 of the current's square.
+        let i2_scale = a.current_sq_a2.iter().fold(0.0f64, |m, v| m.max(*v));
+        let worst_i2 = max_difference(&a.current_sq_a2, &b.current_sq_a2);
+        assert!(worst_i2 <= 1e-7 * i2_scale, "{worst_i2:e} of {i2_scale:e}");
+        // A coil of 0.5 ms (κ ≈ 49 on the paper's rod) does act.
+        current_loop.amplifier = Some((600.0, 0.8, 5e-4));
+        let moved = max_difference(&a.m_a_per_m, &run(&current_loop).m_a_per_m);
+        assert!(moved > 1e-2 * scale, "{moved:e} of {scale:e}");
+    }
+
+    #[test]
+    fn a_current_loop_passes_dc_and_rejects_a_steady_emf() {
+        // T(0) = 1: at rest the output is the input, and under a constant flux rate the EMF
+        // current 1 − T leaves decays to zero (the integrator takes the EMF over).
+        let (c0, delta) = (1.0e4, 1e-5);
+        let l = CurrentLoop::new(800.0, 2.0, 5e-4, c0, delta);
+        let rest = l.rest(0.7);
+        assert!((l.output(rest) - 0.7).abs() < 1e-12);
+        assert!((l.output(l.advance(rest, 0.7, 0.7)) - 0.7).abs() < 1e-12);
+        let w_rate = 3.0e3;
+        let mut x = [0.0; 2];
+        let first = l.emf_current(x, w_rate);
+        // At the first substep almost the whole EMF current flows: (τ_L/c0)(1 − g) w'.
+        assert!((first - l.implicit_impedance() * w_rate).abs() < 1e-12);
+        assert!(first > 0.0);
+        for _ in 0..200_000 {
+            x = l.advance(x, w_rate, w_rate);
+        }
+        let settled = l.emf_current(x, w_rate);
+        assert!(settled.abs() < 1e-6 * first, "{settled:e} of {first:e}");
     }
 
     #[test]

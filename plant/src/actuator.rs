@@ -74,7 +74,9 @@ const T_COIL: usize = 14;
 const T_ROD: usize = 15;
 const T_SHELL2: usize = 16;
 const T_SHELL3: usize = 17;
-const CREEP0: usize = 18;
+/// The current the sensed PI loop reads (its sense filter's output).
+const I_SENSED: usize = 18;
+const CREEP0: usize = 19;
 const J0: usize = CREEP0 + CREEP_TERMS;
 
 /// The nominal constants of the plant, f64.
@@ -210,6 +212,19 @@ impl Plant {
         }
         if let Some(a) = fx.amplifier {
             fastest = fastest.min(1.0 / (a.omega * (a.zeta + 1.0)));
+            // The sense filter's pole, sped up by the loop's proportional path through the
+            // coil: `τ_s i_s' = i − i_s` with `i` falling by `K_p/(1 + κ)` per unit of `i_s`.
+            if let AmplifierForm::SensedPiLoop {
+                tau_l,
+                tau_z,
+                omega_sense,
+                ..
+            } = a.form
+            {
+                let kappa = tau_l * constants.c1_per_m_s / constants.c0_per_m;
+                let kp = a.omega * tau_z;
+                fastest = fastest.min(1.0 / (omega_sense * (1.0 + kp / (1.0 + kappa))));
+            }
         }
         if let Some(s) = fx.sensor {
             fastest = fastest.min(1.0 / (s.omega * (s.zeta + 1.0)));
@@ -399,9 +414,10 @@ impl Plant {
             }
         }
         self.x[I_COIL] = current_a;
+        self.x[I_SENSED] = current_a;
         // At rest the PI loop's integrator holds the whole voltage (`v = i`).
         self.x[DI_COIL] = match self.fx.amplifier.map(|a| a.form) {
-            Some(AmplifierForm::PiLoop { .. }) => current_a,
+            Some(AmplifierForm::PiLoop { .. } | AmplifierForm::SensedPiLoop { .. }) => current_a,
             _ => 0.0,
         };
         self.x[H] = h;
@@ -551,6 +567,8 @@ impl Plant {
     /// `κ = τ_L c1 / c0` (`L = μ0 N A c0`). Its controller `v = K_p (cmd − i) + z`,
     /// `z' = ω_c (cmd − i)`, `K_p = ω_c τ_L` (the zero on the coil's pole: crossover at ω_c),
     /// gives `i` algebraically; at the voltage limit `v` is clamped and `z` held (anti-windup).
+    /// The sensed PI loop reads `i_s` (`τ_s i_s' = i − i_s`) instead of `i`, with
+    /// `K_p = ω_c τ_z`: `v` is then known before `i`, and `i = (v + κ g)/(1 + κ)`.
     fn coil_current(&self, command_a: f64, x: &[f64]) -> (f64, Option<f64>) {
         let c = &self.constants;
         let (i, dz) = match self.fx.amplifier {
@@ -571,6 +589,28 @@ impl Plant {
                 } else {
                     (i, Some(omega * (command_a - i)))
                 }
+            }
+            Some(Amplifier {
+                form:
+                    AmplifierForm::SensedPiLoop {
+                        tau_l,
+                        tau_z,
+                        v_lim,
+                        ..
+                    },
+                omega,
+                ..
+            }) => {
+                let kappa = tau_l * c.c1_per_m_s / c.c0_per_m;
+                let g = x[H] / c.c0_per_m + x[J0..].iter().sum::<f64>();
+                let error = command_a - x[I_SENSED];
+                let v = omega * tau_z * error + x[DI_COIL];
+                let (v, dz) = if v.abs() > v_lim {
+                    (v.clamp(-v_lim, v_lim), 0.0)
+                } else {
+                    (v, omega * error)
+                };
+                ((v + kappa * g) / (1.0 + kappa), Some(dz))
             }
             Some(_) => (x[I_COIL], None),
             None => (command_a, None),
@@ -606,6 +646,13 @@ impl Plant {
             }
             _ => dx[DI_COIL] = dz.unwrap_or(0.0),
         }
+        dx[I_SENSED] = match self.fx.amplifier {
+            Some(Amplifier {
+                form: AmplifierForm::SensedPiLoop { omega_sense, .. },
+                ..
+            }) => omega_sense * (i - x[I_SENSED]),
+            _ => 0.0,
+        };
         // Eddy currents and hysteresis (module docs).
         let h = x[H];
         let j_sum: f64 = x[J0..].iter().sum();

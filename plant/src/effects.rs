@@ -1,4 +1,4 @@
-//! The effects the bench plant can switch on, each in three physical forms (key `form`,
+//! The effects the bench plant can switch on, each in three or more physical forms (key `form`,
 //! [`EffectSpec::forms`]) chosen to differ from the diagnosis' candidate equations
 //! (`maglab_diagnose::candidates`) and from each other, so that a diagnosis tested on this plant
 //! is tested on equations it does not share, and its rules can be chosen on some forms and
@@ -7,7 +7,7 @@
 //! | name | forms | the diagnosis candidate it should be named as |
 //! |---|---|---|
 //! | `eddy_frequency_dependence` | a Foster ladder of `paths` (≥ 3) extra eddy paths with the time constants of a cylinder (Bessel zeros), of a laminated slab (odd squares) or of a log-spaced spread of skin depths | one extra path |
-//! | `amplifier_bandwidth` | second-order current loop with a slew-rate limit; first order with a slew limit; a PI current loop driving the coil's L/R against the rod's back-EMF under a voltage limit | low-pass on the current |
+//! | `amplifier_bandwidth` | second-order current loop with a slew-rate limit; first order with a slew limit; a PI current loop driving the coil's L/R against the rod's back-EMF under a voltage limit; the same loop with its zero off the coil's L/R and the current read through a sense filter | a current loop tuned on the coil, with a filter pole (its low-pass form at `τ_L = 0`) |
 //! | `sensor_dynamics` | an LVDT's second-order demodulator, a capacitive probe's first-order filter, a laser's moving average; each with a conversion delay, in continuous time | low-pass and delay on the sampled output |
 //! | `reversible_magnetization` | `χ₀ H_r tanh(H / H_r)`, Langevin, Fröhlich–Kennelly | constant susceptibility |
 //! | `thermal_drift` | two-node network (coil, rod); coil and a rod of three shells; two nodes with the current capped by the amplifier's compliance voltage over the heated coil's resistance. Copper resistance rises with temperature, λ_s falls and the rod expands with the rod temperature | one time constant |
@@ -71,15 +71,18 @@ pub static EFFECTS: &[EffectSpec] = &[
             ("natural_hz", 700.0, 150.0, 1e6, "natural frequency of the current loop, Hz"),
             ("damping_ratio", 0.7, 0.2, 3.0, "damping ratio of the current loop"),
             ("slew_a_per_s", 5000.0, 1.0, 1e9, "slew-rate limit of the coil current, A/s"),
-            ("coil_time_constant_s", 5e-4, 1e-5, 0.1, "coil L/R, s (form 2)"),
-            ("voltage_limit_a", 100.0, 1.0, 1e4, "amplifier voltage limit / coil resistance, A (form 2; the rod's eddy currents reflect into the coil as tau_L c1/c0 times its resistance)"),
-            ("form", 0.0, 0.0, 2.0, "0 second order with slew limit, 1 first order, 2 PI current loop against the coil"),
+            ("coil_time_constant_s", 5e-4, 1e-5, 0.1, "coil L/R, s (forms 2 and 3)"),
+            ("voltage_limit_a", 100.0, 1.0, 1e4, "amplifier voltage limit / coil resistance, A (forms 2 and 3; the rod's eddy currents reflect into the coil as tau_L c1/c0 times its resistance)"),
+            ("zero_to_coil_ratio", 1.0, 0.25, 4.0, "the PI zero's time constant over the coil's L/R (form 3: tuned on an L/R the coil on the rod does not have)"),
+            ("sense_to_crossover", 10.0, 2.0, 100.0, "corner of the current-sense filter over the crossover (form 3)"),
+            ("form", 0.0, 0.0, 3.0, "0 second order with slew limit, 1 first order, 2 PI current loop against the coil, 3 mistuned PI loop reading the current through a sense filter"),
         ],
         magnitude: ("natural_hz", false),
         forms: &[
             ("second_order", "second-order current loop (natural_hz, damping_ratio) with a slew-rate limit"),
             ("first_order", "first-order current loop, corner natural_hz, with a slew-rate limit"),
             ("pi_loop", "PI current loop (crossover natural_hz, zero on the coil's L/R) driving the coil against the rod's back-EMF, voltage limit with anti-windup"),
+            ("sensed_pi_loop", "PI current loop (crossover natural_hz) with its zero at zero_to_coil_ratio times the coil's L/R, fed back through a first-order current-sense filter at sense_to_crossover times the crossover, driving the coil against the rod's back-EMF, voltage limit with anti-windup"),
         ],
     },
     EffectSpec {

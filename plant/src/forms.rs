@@ -16,6 +16,14 @@ pub(crate) enum AmplifierForm {
     /// A PI loop with crossover `ω` on the coil (`v = i + τ_L w'/c0`, see
     /// [`crate::actuator::Plant`]'s `coil_current`), `|v| ≤ v_lim`.
     PiLoop { tau_l: f64, v_lim: f64 },
+    /// The PI loop with its zero at `tau_z` instead of on the coil's `tau_l`, fed back through a
+    /// current-sense filter of corner `omega_sense`.
+    SensedPiLoop {
+        tau_l: f64,
+        tau_z: f64,
+        omega_sense: f64,
+        v_lim: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -180,8 +188,17 @@ pub(crate) fn resolve(c: &PlantConstants, effects: &[Effect]) -> Resolved {
                     form: match form {
                         0 => AmplifierForm::SecondOrder,
                         1 => AmplifierForm::FirstOrder,
-                        _ => AmplifierForm::PiLoop {
+                        2 => AmplifierForm::PiLoop {
                             tau_l: e.get("coil_time_constant_s"),
+                            v_lim: e.get("voltage_limit_a"),
+                        },
+                        _ => AmplifierForm::SensedPiLoop {
+                            tau_l: e.get("coil_time_constant_s"),
+                            tau_z: e.get("coil_time_constant_s") * e.get("zero_to_coil_ratio"),
+                            omega_sense: 2.0
+                                * PI
+                                * e.get("natural_hz")
+                                * e.get("sense_to_crossover"),
                             v_lim: e.get("voltage_limit_a"),
                         },
                     },

@@ -69,16 +69,16 @@ impl Design {
 /// from a stream of its own (the same seed gives the same kind, nuisances, start and shape draws
 /// in every form set).
 ///
-/// The diagnosis's rules are chosen on [`Forms::Tuning`] (forms 0 and 1 of every effect) and
-/// scored on [`Forms::HeldOut`] (form 2, which no rule was chosen on); [`Forms::Original`] is
-/// form 0 only, the plant the first rules were chosen on.
+/// The diagnosis's rules are chosen on [`Forms::Tuning`] (every form of an effect but its last)
+/// and scored on [`Forms::HeldOut`] (the last form, which no rule was chosen on);
+/// [`Forms::Original`] is form 0 only, the plant the first rules were chosen on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Forms {
     /// Form 0 of every effect.
     Original,
-    /// Forms 0 and 1, drawn per effect.
+    /// Every form but the last, drawn per effect.
     Tuning,
-    /// Form 2 of every effect.
+    /// The last form of every effect.
     HeldOut,
     /// Any form, drawn per effect.
     All,
@@ -116,13 +116,13 @@ impl Forms {
         }
     }
 
-    /// The form of one effect, drawn from `rng` among the set's.
-    fn draw(&self, rng: &mut impl Rng) -> usize {
+    /// The form of an effect with `n_forms` forms, drawn from `rng` among the set's.
+    fn draw(&self, n_forms: usize, rng: &mut impl Rng) -> usize {
         match self {
             Forms::Original => 0,
-            Forms::Tuning => rng.random_range(0..2),
-            Forms::HeldOut => 2,
-            Forms::All => rng.random_range(0..3),
+            Forms::Tuning => rng.random_range(0..n_forms - 1),
+            Forms::HeldOut => n_forms - 1,
+            Forms::All => rng.random_range(0..n_forms),
         }
     }
 }
@@ -340,10 +340,18 @@ fn shaped(
         "amplifier_bandwidth" => {
             let tau_l_s = log_uniform(form_rng, 1e-4, 1e-3);
             let kappa = tau_l_s * eddy_rate_per_s;
-            e.with("coil_time_constant_s", tau_l_s)?.with(
+            let e = e.with("coil_time_constant_s", tau_l_s)?.with(
                 "voltage_limit_a",
                 (peak_current_a * (1.0 + kappa) * form_rng.random_range(1.0..2.0)).clamp(1.0, 1e4),
-            )?
+            )?;
+            // A loop tuned on a datasheet's L/R within a factor 2 of the wound coil's, its
+            // current sensed through a filter 5 to 20 times above the crossover.
+            if form == 3 {
+                e.with("zero_to_coil_ratio", log_uniform(form_rng, 0.5, 2.0))?
+                    .with("sense_to_crossover", log_uniform(form_rng, 5.0, 20.0))?
+            } else {
+                e
+            }
         }
         "thermal_drift" => e.with(
             "compliance_a",
@@ -809,7 +817,7 @@ pub fn draw_on(
     let constants = crate::PlantConstants::from_params(params);
     let eddy_rate_per_s = constants.c1_per_m_s / constants.c0_per_m;
     for name in names {
-        let form = forms.draw(&mut form_rng);
+        let form = forms.draw(Effect::spec(name)?.forms.len(), &mut form_rng);
         let target = log_uniform(&mut rng, lo, hi);
         // An effect whose plausible range cannot reach the target gets a new shape (up to eight
         // draws; then the one that came closest is kept).

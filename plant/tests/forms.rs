@@ -110,3 +110,41 @@ fn every_form_starts_in_equilibrium() {
         }
     }
 }
+
+#[test]
+fn a_sensed_pi_loop_tuned_on_the_coil_with_a_fast_sense_filter_is_the_pi_loop() {
+    // The held-out loop (form 3) nests the PI loop (form 2): its zero on the coil's L/R and a
+    // sense filter far above the crossover leave a reading within 1 % of the form-2 loop's
+    // effect; a mistuned zero or a slow filter moves it by more.
+    let params = actuator_params::paper_defaults();
+    let start = StartState::Demagnetized;
+    let x = sine_experiment(0, start, 0.5, 0.3, 400.0, 0.1, 1e4);
+    let read = |effects: &[Effect]| {
+        let mut plant = Plant::new(&params, effects, 1e4).unwrap();
+        record(&mut plant, &x, &settings(), 0)
+            .unwrap()
+            .clean_displacement_m
+    };
+    let rms = |a: &[f64], b: &[f64]| {
+        (a.iter().zip(b).map(|(p, q)| (p - q) * (p - q)).sum::<f64>() / a.len() as f64).sqrt()
+    };
+    let bare = read(&[]);
+    let pi = read(&[with_form("amplifier_bandwidth", 2)]);
+    let sensed = |ratio: f64, sense: f64| {
+        read(&[with_form("amplifier_bandwidth", 3)
+            .with("zero_to_coil_ratio", ratio)
+            .unwrap()
+            .with("sense_to_crossover", sense)
+            .unwrap()])
+    };
+    let effect = rms(&pi, &bare);
+    let nested = rms(&sensed(1.0, 100.0), &pi);
+    assert!(nested < 0.01 * effect, "{nested:.3e} of {effect:.3e}");
+    for (ratio, sense) in [(0.5, 100.0), (1.0, 5.0)] {
+        let moved = rms(&sensed(ratio, sense), &pi);
+        assert!(
+            moved > 0.01 * effect,
+            "zero x{ratio}, sense x{sense}: {moved:.3e} of {effect:.3e}"
+        );
+    }
+}

@@ -35,19 +35,19 @@
 //! `T` departs from 1 by `|s/D| ≈ ω/ω_c` only. Below the loop's crossover the loop is
 //! therefore the eddy ODE with a frequency-dependent `c1` — the `eddy_frequency_dependence`
 //! candidate's form (a second eddy path is a frequency-dependent `R_eddy`). Near and above
-//! `ω_c/(1 + ω_c τ_L)` the command's lag-lead `T` is a second term, which neither that
-//! candidate nor the library's amplifier (a low-pass falling to zero) has: a loop whose `T`
-//! departs from 1 by half or more at the top sine (crossover within a few times the sines'
-//! frequencies) is mostly `unexplained` without the coil current (docs/diagnosis.md, "A PI
-//! loop of low crossover"). With the commanded current the
+//! `ω_c/(1 + ω_c τ_L)` the command's lag-lead `T` is a second term, which that candidate
+//! lacks. The library's amplifier is this loop (`maglab_model::model::CurrentLoop`: `T` and
+//! the EMF term `(1 − T)(τ_L/c0) w'`, with a filter pole), so where `T` shows, the fits can
+//! name it; a loop whose `T` stays within a few % of 1 at the top sine is its EMF term alone,
+//! an eddy path (docs/diagnosis.md, "A PI loop of low crossover"). With the commanded current the
 //! only current a dataset holds, an `eddy_frequency_dependence` verdict is therefore always
 //! "eddy_frequency_dependence or amplifier_bandwidth", and so is the part of a gap an eddy path
 //! explains when it explains only part ("partly explained by eddy_frequency_dependence or
 //! amplifier_bandwidth": the loop's share is the same term's), and a pair that names it says in
 //! its reason that the term may be the amplifier's ([`pair_caveat`]); the measured coil current
 //! separates them (the eddy path leaves it equal to the command, the loop does not). The
-//! converse does not hold: the library's amplifier (a lag on the command, independent of the
-//! rod) is not in the eddy candidate's form, and the fits separate the two.
+//! converse does not hold: an amplifier that wins has a command response `T` the eddy candidate
+//! does not have (at `τ_L = 0` it is that lag alone), so the fits have separated the two.
 
 use super::report::CandidateResult;
 use super::rules::{resolution_floor, AMBIGUOUS_HELD_OUT, MAX_WORSE_SHARE, PARTIAL_SHARE};

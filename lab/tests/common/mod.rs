@@ -23,6 +23,18 @@ const BENCH_FOLDER_ARGS: [&str; 12] = [
     "11",
 ];
 
+/// `maglab rig`'s arguments for a short sine set: five frequencies through the rod's resonance
+/// region, two amplitudes, 0.5 s each (a CI budget).
+#[allow(dead_code)] // not every test crate that includes this module records one
+pub const SHORT_SINES_ARGS: [&str; 6] = [
+    "--freq",
+    "20,50,100,200,400",
+    "--amplitude-a",
+    "0.2,0.4",
+    "--duration-s",
+    "0.5",
+];
+
 /// Records the bench folder ([`BENCH_FOLDER_ARGS`]) into `data` with `maglab rig`, `extra`
 /// arguments added (an effect, another start).
 #[allow(dead_code)] // not every test crate that includes this module records one
