@@ -11,7 +11,9 @@
 //! | `load_mass_kg` | `mechanical_load.mass_ratio` | `m / m_eff`, `m_eff` a third of the rod's mass (below) |
 //! | `coil_resistance_ohm`, `coil_inductance_h` | none | the amplifier's `coil_time_constant_s` ([`crate::model::CurrentLoop`]) is `L/R` without the rod's magnetization (`L = μ0 N A c0`; the model adds the rod's `M` itself), a datasheet's inductance is measured with the rod inside |
 //!
-//! **A −3 dB bandwidth as a natural frequency.** The library's sensor and amplifier are
+//! **A −3 dB bandwidth as a natural frequency.** The library's sensor and amplifier (its current
+//! loop at `coil_time_constant_s = 0`; a coil's EMF term moves the loop's −3 dB, which a
+//! datasheet's bandwidth does not bound) are
 //! second-order low-passes `ωn² / (s² + 2ζωn s + ωn²)`, whose −3 dB frequency is `ωn g(ζ)` with
 //! `g(ζ)² = 1 − 2ζ² + √((1 − 2ζ²)² + 1)` (from `|H(jω)|² = 1/2`); `g` falls from 1.454 at
 //! ζ = 0.3 through 1 at ζ = 1/√2 to 0.172 at ζ = 3 (a first-order sensor is fitted as an
