@@ -99,6 +99,12 @@ pub struct PlantConstants {
 }
 
 impl PlantConstants {
+    /// `κ = τ_L c1/c0`: the rod's eddy resistance as a coil of time constant `tau_l_s` sees it,
+    /// over the coil's own resistance (`L = μ0 N A c0`).
+    pub fn reflected_eddy_ratio(&self, tau_l_s: f64) -> f64 {
+        tau_l_s * self.c1_per_m_s / self.c0_per_m
+    }
+
     /// From a parameter file.
     pub fn from_params(p: &ActuatorParams) -> Self {
         let a = &p.actuator;
@@ -221,7 +227,7 @@ impl Plant {
                 ..
             } = a.form
             {
-                let kappa = tau_l * constants.c1_per_m_s / constants.c0_per_m;
+                let kappa = constants.reflected_eddy_ratio(tau_l);
                 let kp = a.omega * tau_z;
                 fastest = fastest.min(1.0 / (omega_sense * (1.0 + kp / (1.0 + kappa))));
             }
@@ -577,7 +583,7 @@ impl Plant {
                 omega,
                 ..
             }) => {
-                let kappa = tau_l * c.c1_per_m_s / c.c0_per_m;
+                let kappa = c.reflected_eddy_ratio(tau_l);
                 let kp = omega * tau_l;
                 let g = x[H] / c.c0_per_m + x[J0..].iter().sum::<f64>();
                 let z = x[DI_COIL];
@@ -601,7 +607,7 @@ impl Plant {
                 omega,
                 ..
             }) => {
-                let kappa = tau_l * c.c1_per_m_s / c.c0_per_m;
+                let kappa = c.reflected_eddy_ratio(tau_l);
                 let g = x[H] / c.c0_per_m + x[J0..].iter().sum::<f64>();
                 let error = command_a - x[I_SENSED];
                 let v = omega * tau_z * error + x[DI_COIL];
