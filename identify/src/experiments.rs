@@ -428,18 +428,11 @@ pub fn load_split_dataset(
     options: &ClassifyOptions,
 ) -> Result<SplitDataset, DataError> {
     let (top_files, dirs, mut ignored) = list(dir)?;
-    let mut quasi_static = Vec::new();
-    let mut dynamic = Vec::new();
-    let mut classification = Vec::new();
+    let mut sorted = Sorted::default();
     for sub in &dirs {
-        let name = sub.file_name().map(|n| n.to_string_lossy().to_string());
-        let is_dynamic = match name.as_deref() {
-            Some(QUASI_STATIC_DIR) => false,
-            Some(DYNAMIC_DIR) => true,
-            _ => {
-                ignored.push(sub.clone());
-                continue;
-            }
+        let Some(is_dynamic) = folder_rule(sub) else {
+            ignored.push(sub.clone());
+            continue;
         };
         let (files, subdirs, other) = list(sub)?;
         ignored.extend(subdirs);
@@ -451,79 +444,18 @@ pub fn load_split_dataset(
             ));
         }
         for path in files {
-            let m = load_measurement(&path)?;
-            let tone = tone_of(&m);
-            if is_dynamic {
-                let t = tone
-                    .filter(|t| t.tonal_fraction >= options.tonal_min_fraction)
-                    .ok_or_else(|| {
-                        DataError::file(
-                            &path,
-                            format!(
-                                "column `current_a`: a file in `{DYNAMIC_DIR}/` must be a sinusoidal \
-                                 current, but only {:.1} % of its AC power is in the spectral peak \
-                                 (needs {:.0} %)",
-                                100.0 * tone.map_or(0.0, |t| t.tonal_fraction),
-                                100.0 * options.tonal_min_fraction
-                            ),
-                        )
-                    })?;
-                classification.push(Classified {
-                    path: path.clone(),
-                    kind: Kind::Dynamic,
-                    rule: Rule::Folder,
-                    tone,
-                    reason: format!("in `{DYNAMIC_DIR}/`: sinusoid at {:.3} Hz", t.frequency_hz),
-                });
-                dynamic.push(dynamic_experiment(m, t));
-            } else {
-                classification.push(Classified {
-                    path: path.clone(),
-                    kind: Kind::QuasiStatic,
-                    rule: Rule::Folder,
-                    tone,
-                    reason: format!("in `{QUASI_STATIC_DIR}/`"),
-                });
-                quasi_static.push(m);
-            }
+            sorted.by_folder(path, is_dynamic, options)?;
         }
     }
     for path in top_files {
-        let m = load_measurement(&path)?;
-        let tone = tone_of(&m);
-        let (kind, reason) = classify_by_spectrum(&m, tone, options);
-        classification.push(Classified {
-            path: path.clone(),
-            kind,
-            rule: Rule::Spectrum,
-            tone,
-            reason,
-        });
-        match (kind, tone) {
-            (Kind::Dynamic, Some(t)) => dynamic.push(dynamic_experiment(m, t)),
-            (Kind::QuasiStatic, _) => quasi_static.push(m),
-            _ => {}
-        }
+        sorted.by_spectrum(path, options)?;
     }
-    if classification.is_empty() {
-        return Err(DataError::file(
-            dir,
-            format!(
-                "no measurement files (`*.csv`) in the dataset folder or its `{QUASI_STATIC_DIR}/` \
-                 and `{DYNAMIC_DIR}/` sub-folders"
-            ),
-        ));
-    }
-    if quasi_static.is_empty() && dynamic.is_empty() {
-        return Err(DataError::file(
-            dir,
-            format!(
-                "no file of the dataset folder can be used: none is a sinusoid or slow \
-                 everywhere ({}); put the files to fit as quasi-static data in `{QUASI_STATIC_DIR}/`",
-                classification[0].reason
-            ),
-        ));
-    }
+    sorted.check_usable(dir)?;
+    let Sorted {
+        quasi_static,
+        mut dynamic,
+        classification,
+    } = sorted;
     dynamic.sort_by(|a, b| a.frequency_hz.total_cmp(&b.frequency_hz));
     Ok(SplitDataset {
         dir: dir.to_path_buf(),
@@ -532,4 +464,112 @@ pub fn load_split_dataset(
         classification,
         ignored,
     })
+}
+
+/// Rule 1 for a sub-folder: `Some(true)` for `dynamic/`, `Some(false)` for `quasi-static/`,
+/// `None` for any other (not read, reported as ignored).
+fn folder_rule(sub: &Path) -> Option<bool> {
+    match sub.file_name()?.to_str()? {
+        QUASI_STATIC_DIR => Some(false),
+        DYNAMIC_DIR => Some(true),
+        _ => None,
+    }
+}
+
+/// The files read so far, by what they are used for, and every file's classification.
+#[derive(Default)]
+struct Sorted {
+    quasi_static: Vec<Measurement>,
+    dynamic: Vec<DynamicExperiment>,
+    classification: Vec<Classified>,
+}
+
+impl Sorted {
+    /// Rule 1: a file of `dynamic/` (`is_dynamic`) or `quasi-static/`; a file of `dynamic/` that
+    /// is not a sinusoid is an error naming it.
+    fn by_folder(
+        &mut self,
+        path: PathBuf,
+        is_dynamic: bool,
+        options: &ClassifyOptions,
+    ) -> Result<(), DataError> {
+        let m = load_measurement(&path)?;
+        let tone = tone_of(&m);
+        if !is_dynamic {
+            self.classification.push(Classified {
+                path,
+                kind: Kind::QuasiStatic,
+                rule: Rule::Folder,
+                tone,
+                reason: format!("in `{QUASI_STATIC_DIR}/`"),
+            });
+            self.quasi_static.push(m);
+            return Ok(());
+        }
+        let Some(t) = tone.filter(|t| t.tonal_fraction >= options.tonal_min_fraction) else {
+            return Err(DataError::file(
+                &path,
+                format!(
+                    "column `current_a`: a file in `{DYNAMIC_DIR}/` must be a sinusoidal current, \
+                     but only {:.1} % of its AC power is in the spectral peak (needs {:.0} %)",
+                    100.0 * tone.map_or(0.0, |t| t.tonal_fraction),
+                    100.0 * options.tonal_min_fraction
+                ),
+            ));
+        };
+        self.classification.push(Classified {
+            path,
+            kind: Kind::Dynamic,
+            rule: Rule::Folder,
+            tone,
+            reason: format!("in `{DYNAMIC_DIR}/`: sinusoid at {:.3} Hz", t.frequency_hz),
+        });
+        self.dynamic.push(dynamic_experiment(m, t));
+        Ok(())
+    }
+
+    /// Rule 2: a file directly in the dataset folder, by the spectrum of its current.
+    fn by_spectrum(&mut self, path: PathBuf, options: &ClassifyOptions) -> Result<(), DataError> {
+        let m = load_measurement(&path)?;
+        let tone = tone_of(&m);
+        let (kind, reason) = classify_by_spectrum(&m, tone, options);
+        self.classification.push(Classified {
+            path,
+            kind,
+            rule: Rule::Spectrum,
+            tone,
+            reason,
+        });
+        match (kind, tone) {
+            (Kind::Dynamic, Some(t)) => self.dynamic.push(dynamic_experiment(m, t)),
+            (Kind::QuasiStatic, _) => self.quasi_static.push(m),
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// An error naming the folder when it holds no measurement file, or none that can be used.
+    fn check_usable(&self, dir: &Path) -> Result<(), DataError> {
+        if self.classification.is_empty() {
+            return Err(DataError::file(
+                dir,
+                format!(
+                    "no measurement files (`*.csv`) in the dataset folder or its \
+                     `{QUASI_STATIC_DIR}/` and `{DYNAMIC_DIR}/` sub-folders"
+                ),
+            ));
+        }
+        if self.quasi_static.is_empty() && self.dynamic.is_empty() {
+            return Err(DataError::file(
+                dir,
+                format!(
+                    "no file of the dataset folder can be used: none is a sinusoid or slow \
+                     everywhere ({}); put the files to fit as quasi-static data in \
+                     `{QUASI_STATIC_DIR}/`",
+                    self.classification[0].reason
+                ),
+            ));
+        }
+        Ok(())
+    }
 }

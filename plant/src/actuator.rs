@@ -635,10 +635,35 @@ impl Plant {
         }
     }
 
+    /// The plant's state derivatives `dx` at the state `x` under the command `command_a`, one
+    /// subsystem after the other: the coil current, the eddy currents and the hysteresis, the
+    /// temperatures, the strain drive and its creep, the rod head with its friction, the load
+    /// masses, the sensor.
     fn derivatives(&self, command_a: f64, x: &[f64], dx: &mut [f64]) {
-        let c = &self.constants;
-        // Coil current.
         let (i, dz) = self.coil_current(command_a, x);
+        self.amplifier_derivatives(command_a, x, (i, dz), dx);
+        self.magnetic_derivatives(i, x, dx);
+        self.thermal_derivatives(i, x, dx);
+        // Strain drive, creep.
+        let u = self.static_strain(x[M], self.rod_temperature(x));
+        self.creep_derivatives(u, x, dx);
+        let u_eff = u + self.creep_strain(x);
+        // Rod head, with friction.
+        dx[Y1] = if self.stuck { 0.0 } else { x[V1] };
+        dx[V1] = self.with_friction(x, self.rod_acceleration(x, u_eff));
+        self.load_derivatives(x, dx);
+        self.sensor_derivatives(x, dx);
+    }
+
+    /// The amplifier's states: its current and rate (the second- and first-order forms), the PI
+    /// loop's integrator (`dz`, with the coil current `i`), the sensed current's filter.
+    fn amplifier_derivatives(
+        &self,
+        command_a: f64,
+        x: &[f64],
+        (i, dz): (f64, Option<f64>),
+        dx: &mut [f64],
+    ) {
         dx[I_COIL] = 0.0;
         dx[DI_COIL] = 0.0;
         match self.fx.amplifier {
@@ -659,7 +684,11 @@ impl Plant {
             }) => omega_sense * (i - x[I_SENSED]),
             _ => 0.0,
         };
-        // Eddy currents and hysteresis (module docs).
+    }
+
+    /// Eddy currents and hysteresis (module docs) under the coil current `i`.
+    fn magnetic_derivatives(&self, i: f64, x: &[f64], dx: &mut [f64]) {
+        let c = &self.constants;
         let h = x[H];
         let j_sum: f64 = x[J0..].iter().sum();
         let w_dot = c.c1_per_m_s * (i - h / c.c0_per_m - j_sum);
@@ -670,32 +699,38 @@ impl Plant {
         for (k, &(inv_c1k, tau)) in self.fx.paths.iter().enumerate() {
             dx[J0 + k] = (w_dot * inv_c1k - x[J0 + k]) / tau;
         }
-        // Temperatures.
+    }
+
+    /// The coil's and the rod's temperatures under the coil current `i`.
+    fn thermal_derivatives(&self, i: f64, x: &[f64], dx: &mut [f64]) {
         for k in [T_COIL, T_ROD, T_SHELL2, T_SHELL3] {
             dx[k] = 0.0;
         }
-        if let Some(t) = self.fx.thermal {
-            // Copper resistance rises with temperature (heating ~ I² R(T)); the coil's
-            // insulation limit (200 K rise) caps it, so the plant cannot run away.
-            let heating = t.rise * i * i * (1.0 + t.tempco * x[T_COIL].clamp(0.0, MAX_RISE_K));
-            let heating = if x[T_COIL] >= MAX_RISE_K {
-                heating.min(x[T_COIL])
-            } else {
-                heating
-            };
-            dx[T_COIL] = (heating - x[T_COIL]) / t.tau_coil;
-            if t.form == ThermalForm::Distributed {
-                // Three shells in series, each link a third of the rod's time constant.
-                let tau = t.tau_rod / 3.0;
-                dx[T_ROD] = (x[T_COIL] - x[T_ROD]) / tau - (x[T_ROD] - x[T_SHELL2]) / tau;
-                dx[T_SHELL2] = (x[T_ROD] - x[T_SHELL2]) / tau - (x[T_SHELL2] - x[T_SHELL3]) / tau;
-                dx[T_SHELL3] = (x[T_SHELL2] - x[T_SHELL3]) / tau;
-            } else {
-                dx[T_ROD] = (x[T_COIL] - x[T_ROD]) / t.tau_rod;
-            }
+        let Some(t) = self.fx.thermal else {
+            return;
+        };
+        // Copper resistance rises with temperature (heating ~ I² R(T)); the coil's insulation
+        // limit (200 K rise) caps it, so the plant cannot run away.
+        let heating = t.rise * i * i * (1.0 + t.tempco * x[T_COIL].clamp(0.0, MAX_RISE_K));
+        let heating = if x[T_COIL] >= MAX_RISE_K {
+            heating.min(x[T_COIL])
+        } else {
+            heating
+        };
+        dx[T_COIL] = (heating - x[T_COIL]) / t.tau_coil;
+        if t.form == ThermalForm::Distributed {
+            // Three shells in series, each link a third of the rod's time constant.
+            let tau = t.tau_rod / 3.0;
+            dx[T_ROD] = (x[T_COIL] - x[T_ROD]) / tau - (x[T_ROD] - x[T_SHELL2]) / tau;
+            dx[T_SHELL2] = (x[T_ROD] - x[T_SHELL2]) / tau - (x[T_SHELL2] - x[T_SHELL3]) / tau;
+            dx[T_SHELL3] = (x[T_SHELL2] - x[T_SHELL3]) / tau;
+        } else {
+            dx[T_ROD] = (x[T_COIL] - x[T_ROD]) / t.tau_rod;
         }
-        // Strain drive, creep.
-        let u = self.static_strain(x[M], self.rod_temperature(x));
+    }
+
+    /// The creep terms, each relaxing towards the static strain drive `u`.
+    fn creep_derivatives(&self, u: f64, x: &[f64], dx: &mut [f64]) {
         for k in 0..CREEP_TERMS {
             dx[CREEP0 + k] = 0.0;
         }
@@ -704,63 +739,72 @@ impl Plant {
                 dx[CREEP0 + k] = (u - x[CREEP0 + k]) / cr.taus_s[k];
             }
         }
-        let u_eff = u + self.creep_strain(x);
-        // Rod head, with friction.
-        let mut a1 = self.rod_acceleration(x, u_eff);
-        if let Some(f) = self.fx.friction {
-            if let FrictionForm::Dahl { .. } = f.form {
-                a1 -= self.dahl_accel;
-            } else if self.stuck {
-                a1 = 0.0;
-            } else {
-                let dir = if x[V1] != 0.0 {
-                    x[V1].signum()
-                } else {
-                    self.slide_sign
-                };
-                let level = match f.form {
-                    FrictionForm::Stribeck { speed_m_per_s } => {
-                        let q = x[V1] / speed_m_per_s;
-                        f.kinetic_accel + (f.static_accel - f.kinetic_accel) * (-q * q).exp()
-                    }
-                    _ => f.kinetic_accel,
-                };
-                a1 -= level * dir;
-            }
+    }
+
+    /// The rod head's acceleration `a1` with the friction: Dahl's presliding force; none while
+    /// stuck; sliding, Coulomb's or Stribeck's against the direction of motion (of the last
+    /// slide, at rest).
+    fn with_friction(&self, x: &[f64], a1: f64) -> f64 {
+        let Some(f) = self.fx.friction else {
+            return a1;
+        };
+        if let FrictionForm::Dahl { .. } = f.form {
+            return a1 - self.dahl_accel;
         }
-        dx[Y1] = if self.stuck { 0.0 } else { x[V1] };
-        dx[V1] = a1;
-        // Load masses: a chain, each coupling's force shared by the masses it joins.
+        if self.stuck {
+            return 0.0;
+        }
+        let dir = if x[V1] != 0.0 {
+            x[V1].signum()
+        } else {
+            self.slide_sign
+        };
+        let level = match f.form {
+            FrictionForm::Stribeck { speed_m_per_s } => {
+                let q = x[V1] / speed_m_per_s;
+                f.kinetic_accel + (f.static_accel - f.kinetic_accel) * (-q * q).exp()
+            }
+            _ => f.kinetic_accel,
+        };
+        a1 - level * dir
+    }
+
+    /// The load masses: a chain, each coupling's force shared by the masses it joins.
+    fn load_derivatives(&self, x: &[f64], dx: &mut [f64]) {
         for k in [Y2, V2, Y3, V3, Y4, V4] {
             dx[k] = 0.0;
         }
-        if let Some(l) = self.fx.load {
-            let coupling = |ya: usize, yb: usize, w: f64, z: f64| {
-                w * w * (x[ya] - x[yb]) + 2.0 * z * w * (x[ya + 1] - x[yb + 1])
-            };
-            let c12 = coupling(Y1, Y2, l.w2, l.z2);
-            let c23 = if l.modes >= 2 {
-                coupling(Y2, Y3, l.w3, l.z3)
-            } else {
-                0.0
-            };
-            let c34 = if l.modes >= 3 {
-                coupling(Y3, Y4, l.w4, l.z4)
-            } else {
-                0.0
-            };
-            dx[Y2] = x[V2];
-            dx[V2] = c12 - l.r3 / l.r2 * c23;
-            if l.modes >= 2 {
-                dx[Y3] = x[V3];
-                dx[V3] = c23 - if l.r3 > 0.0 { l.r4 / l.r3 } else { 0.0 } * c34;
-            }
-            if l.modes >= 3 {
-                dx[Y4] = x[V4];
-                dx[V4] = c34;
-            }
+        let Some(l) = self.fx.load else {
+            return;
+        };
+        let coupling = |ya: usize, yb: usize, w: f64, z: f64| {
+            w * w * (x[ya] - x[yb]) + 2.0 * z * w * (x[ya + 1] - x[yb + 1])
+        };
+        let c12 = coupling(Y1, Y2, l.w2, l.z2);
+        let c23 = if l.modes >= 2 {
+            coupling(Y2, Y3, l.w3, l.z3)
+        } else {
+            0.0
+        };
+        let c34 = if l.modes >= 3 {
+            coupling(Y3, Y4, l.w4, l.z4)
+        } else {
+            0.0
+        };
+        dx[Y2] = x[V2];
+        dx[V2] = c12 - l.r3 / l.r2 * c23;
+        if l.modes >= 2 {
+            dx[Y3] = x[V3];
+            dx[V3] = c23 - if l.r3 > 0.0 { l.r4 / l.r3 } else { 0.0 } * c34;
         }
-        // Sensor low-pass, driven by the (backlash) follower position.
+        if l.modes >= 3 {
+            dx[Y4] = x[V4];
+            dx[V4] = c34;
+        }
+    }
+
+    /// The sensor's low-pass, driven by the (backlash) follower position.
+    fn sensor_derivatives(&self, x: &[f64], dx: &mut [f64]) {
         dx[S1] = 0.0;
         dx[S2] = 0.0;
         if let Some(s) = self.fx.sensor {

@@ -180,166 +180,29 @@ const BESSEL_J0_ZEROS: [f64; 8] = [
 pub(crate) fn resolve(c: &PlantConstants, effects: &[Effect]) -> Resolved {
     let mut r = Resolved::default();
     for e in effects {
-        let form = e.form();
         match e.name() {
             "eddy_frequency_dependence" => r.paths = eddy_paths(c, e),
-            "amplifier_bandwidth" => {
-                r.amplifier = Some(Amplifier {
-                    form: match form {
-                        0 => AmplifierForm::SecondOrder,
-                        1 => AmplifierForm::FirstOrder,
-                        2 => AmplifierForm::PiLoop {
-                            tau_l: e.get("coil_time_constant_s"),
-                            v_lim: e.get("voltage_limit_a"),
-                        },
-                        _ => AmplifierForm::SensedPiLoop {
-                            tau_l: e.get("coil_time_constant_s"),
-                            tau_z: e.get("coil_time_constant_s") * e.get("zero_to_coil_ratio"),
-                            omega_sense: 2.0
-                                * PI
-                                * e.get("natural_hz")
-                                * e.get("sense_to_crossover"),
-                            v_lim: e.get("voltage_limit_a"),
-                        },
-                    },
-                    omega: 2.0 * PI * e.get("natural_hz"),
-                    zeta: e.get("damping_ratio"),
-                    slew: e.get("slew_a_per_s"),
-                })
-            }
+            "amplifier_bandwidth" => r.amplifier = Some(amplifier(e)),
             "sensor_dynamics" => {
-                let omega = 2.0 * PI * e.get("natural_hz");
-                match form {
-                    0 | 1 => {
-                        r.sensor = Some(SensorFilter {
-                            omega,
-                            zeta: if form == 0 {
-                                e.get("damping_ratio")
-                            } else {
-                                0.0
-                            },
-                            second_order: form == 0,
-                        })
-                    }
-                    // A boxcar of length T has its −3 dB point at 0.443 / T.
-                    _ => r.sensor_window_s = 0.443 / e.get("natural_hz"),
-                }
+                (r.sensor, r.sensor_window_s) = sensor(e);
                 r.sensor_delay_s = e.get("delay_s");
             }
             "reversible_magnetization" => {
                 r.reversible = Some((
-                    form,
+                    e.form(),
                     e.get("susceptibility"),
                     e.get("saturation_field_a_per_m"),
                 ))
             }
-            "thermal_drift" => {
-                r.thermal = Some(Thermal {
-                    form: match form {
-                        0 => ThermalForm::Lumped,
-                        1 => ThermalForm::Distributed,
-                        _ => ThermalForm::VoltageLimited {
-                            compliance_a: e.get("compliance_a"),
-                        },
-                    },
-                    rise: e.get("coil_rise_k_per_a2"),
-                    tau_coil: e.get("coil_time_constant_s"),
-                    tau_rod: e.get("rod_time_constant_s"),
-                    tempco: e.get("copper_tempco_per_k"),
-                    loss: e.get("magnetostriction_loss_per_k"),
-                    expansion: e.get("expansion_m_per_k"),
-                })
-            }
-            "delta_e_effect" => {
-                r.delta_e = Some(DeltaE {
-                    form: match form {
-                        0 => DeltaEForm::Quartic,
-                        1 => DeltaEForm::Cubic,
-                        _ => DeltaEForm::Field {
-                            h_s: e.get("field_scale_a_per_m"),
-                        },
-                    },
-                    d: e.get("magnetization_stiffening"),
-                    s: e.get("stress_stiffening"),
-                })
-            }
-            "mechanical_load" => {
-                let r2 = e.get("mass_ratio").max(1e-6);
-                let modes = form_modes(form);
-                // Each further mass is given relative to the one before.
-                let r3 = if modes >= 2 {
-                    r2 * e.get("second_mass_ratio")
-                } else {
-                    0.0
-                };
-                let r4 = if modes >= 3 {
-                    r3 * e.get("second_mass_ratio")
-                } else {
-                    0.0
-                };
-                let w3 = 2.0 * PI * e.get("second_coupling_hz");
-                r.load = Some(LoadModes {
-                    modes,
-                    r2,
-                    w2: 2.0 * PI * e.get("coupling_hz"),
-                    z2: e.get("damping_ratio"),
-                    r3,
-                    w3,
-                    z3: e.get("second_damping_ratio"),
-                    r4,
-                    w4: 1.7 * w3,
-                    z4: e.get("second_damping_ratio"),
-                })
-            }
-            "backlash" => {
-                r.backlash = Some(Backlash {
-                    form: match form {
-                        0 => BacklashForm::Play,
-                        1 => BacklashForm::Lagging {
-                            omega: 2.0 * PI * e.get("follower_hz"),
-                        },
-                        _ => BacklashForm::Smooth,
-                    },
-                    width_m: e.get("width_m"),
-                })
-            }
-            "stick_slip" => {
-                let w2 = c.omega0_rad_per_s * c.omega0_rad_per_s;
-                let s = w2 * e.get("breakaway_m");
-                r.friction = Some(Friction {
-                    form: match form {
-                        0 => FrictionForm::Coulomb,
-                        1 => FrictionForm::Stribeck {
-                            speed_m_per_s: e.get("stribeck_speed_m_per_s"),
-                        },
-                        _ => FrictionForm::Dahl {
-                            presliding_m: e.get("presliding_m"),
-                        },
-                    },
-                    static_accel: s,
-                    kinetic_accel: s * e.get("kinetic_ratio"),
-                })
-            }
-            "creep" => {
-                let tau0 = e.get("time_constant_s");
-                let (first, terms) = match form {
-                    0 => (tau0, 3),
-                    1 => (10.0 * tau0, 1),
-                    _ => (tau0, CREEP_TERMS),
-                };
-                let mut taus_s = [0.0; CREEP_TERMS];
-                for (k, t) in taus_s.iter_mut().take(terms).enumerate() {
-                    *t = first * 10f64.powi(k as i32);
-                }
-                r.creep = Some(Creep {
-                    ratio: e.get("ratio"),
-                    taus_s,
-                    terms,
-                });
-            }
+            "thermal_drift" => r.thermal = Some(thermal(e)),
+            "delta_e_effect" => r.delta_e = Some(delta_e(e)),
+            "mechanical_load" => r.load = Some(load(e)),
+            "backlash" => r.backlash = Some(backlash(e)),
+            "stick_slip" => r.friction = Some(friction(c, e)),
+            "creep" => r.creep = Some(creep(e)),
             "sensor_nonlinearity" => {
                 r.sensor_gain_change = Some((
-                    form,
+                    e.form(),
                     e.get("gain_change"),
                     e.get("null_m"),
                     e.get("range_m"),
@@ -349,6 +212,168 @@ pub(crate) fn resolve(c: &PlantConstants, effects: &[Effect]) -> Resolved {
         }
     }
     r
+}
+
+/// The amplifier of `amplifier_bandwidth`'s form.
+fn amplifier(e: &Effect) -> Amplifier {
+    Amplifier {
+        form: match e.form() {
+            0 => AmplifierForm::SecondOrder,
+            1 => AmplifierForm::FirstOrder,
+            2 => AmplifierForm::PiLoop {
+                tau_l: e.get("coil_time_constant_s"),
+                v_lim: e.get("voltage_limit_a"),
+            },
+            _ => AmplifierForm::SensedPiLoop {
+                tau_l: e.get("coil_time_constant_s"),
+                tau_z: e.get("coil_time_constant_s") * e.get("zero_to_coil_ratio"),
+                omega_sense: 2.0 * PI * e.get("natural_hz") * e.get("sense_to_crossover"),
+                v_lim: e.get("voltage_limit_a"),
+            },
+        },
+        omega: 2.0 * PI * e.get("natural_hz"),
+        zeta: e.get("damping_ratio"),
+        slew: e.get("slew_a_per_s"),
+    }
+}
+
+/// `sensor_dynamics`' filter (the LVDT's second-order and the probe's first-order forms) or the
+/// laser's moving-average window, s (0 for the filters).
+fn sensor(e: &Effect) -> (Option<SensorFilter>, f64) {
+    let form = e.form();
+    match form {
+        0 | 1 => (
+            Some(SensorFilter {
+                omega: 2.0 * PI * e.get("natural_hz"),
+                zeta: if form == 0 {
+                    e.get("damping_ratio")
+                } else {
+                    0.0
+                },
+                second_order: form == 0,
+            }),
+            0.0,
+        ),
+        // A boxcar of length T has its −3 dB point at 0.443 / T.
+        _ => (None, 0.443 / e.get("natural_hz")),
+    }
+}
+
+/// The coil and rod heating of `thermal_drift`'s form.
+fn thermal(e: &Effect) -> Thermal {
+    Thermal {
+        form: match e.form() {
+            0 => ThermalForm::Lumped,
+            1 => ThermalForm::Distributed,
+            _ => ThermalForm::VoltageLimited {
+                compliance_a: e.get("compliance_a"),
+            },
+        },
+        rise: e.get("coil_rise_k_per_a2"),
+        tau_coil: e.get("coil_time_constant_s"),
+        tau_rod: e.get("rod_time_constant_s"),
+        tempco: e.get("copper_tempco_per_k"),
+        loss: e.get("magnetostriction_loss_per_k"),
+        expansion: e.get("expansion_m_per_k"),
+    }
+}
+
+/// The stiffening of `delta_e_effect`'s form.
+fn delta_e(e: &Effect) -> DeltaE {
+    DeltaE {
+        form: match e.form() {
+            0 => DeltaEForm::Quartic,
+            1 => DeltaEForm::Cubic,
+            _ => DeltaEForm::Field {
+                h_s: e.get("field_scale_a_per_m"),
+            },
+        },
+        d: e.get("magnetization_stiffening"),
+        s: e.get("stress_stiffening"),
+    }
+}
+
+/// The masses of `mechanical_load`'s form; each further mass is given relative to the one before,
+/// and a third mode couples at 1.7 times the second's frequency.
+fn load(e: &Effect) -> LoadModes {
+    let r2 = e.get("mass_ratio").max(1e-6);
+    let modes = form_modes(e.form());
+    let r3 = if modes >= 2 {
+        r2 * e.get("second_mass_ratio")
+    } else {
+        0.0
+    };
+    let r4 = if modes >= 3 {
+        r3 * e.get("second_mass_ratio")
+    } else {
+        0.0
+    };
+    let w3 = 2.0 * PI * e.get("second_coupling_hz");
+    LoadModes {
+        modes,
+        r2,
+        w2: 2.0 * PI * e.get("coupling_hz"),
+        z2: e.get("damping_ratio"),
+        r3,
+        w3,
+        z3: e.get("second_damping_ratio"),
+        r4,
+        w4: 1.7 * w3,
+        z4: e.get("second_damping_ratio"),
+    }
+}
+
+/// The play of `backlash`'s form.
+fn backlash(e: &Effect) -> Backlash {
+    Backlash {
+        form: match e.form() {
+            0 => BacklashForm::Play,
+            1 => BacklashForm::Lagging {
+                omega: 2.0 * PI * e.get("follower_hz"),
+            },
+            _ => BacklashForm::Smooth,
+        },
+        width_m: e.get("width_m"),
+    }
+}
+
+/// The friction of `stick_slip`'s form, as accelerations: the breakaway displacement times the
+/// rod's stiffness per mass `ω0²` (constants `c`).
+fn friction(c: &PlantConstants, e: &Effect) -> Friction {
+    let w2 = c.omega0_rad_per_s * c.omega0_rad_per_s;
+    let s = w2 * e.get("breakaway_m");
+    Friction {
+        form: match e.form() {
+            0 => FrictionForm::Coulomb,
+            1 => FrictionForm::Stribeck {
+                speed_m_per_s: e.get("stribeck_speed_m_per_s"),
+            },
+            _ => FrictionForm::Dahl {
+                presliding_m: e.get("presliding_m"),
+            },
+        },
+        static_accel: s,
+        kinetic_accel: s * e.get("kinetic_ratio"),
+    }
+}
+
+/// The relaxation terms of `creep`'s form: time constants a decade apart from the first.
+fn creep(e: &Effect) -> Creep {
+    let tau0 = e.get("time_constant_s");
+    let (first, terms) = match e.form() {
+        0 => (tau0, 3),
+        1 => (10.0 * tau0, 1),
+        _ => (tau0, CREEP_TERMS),
+    };
+    let mut taus_s = [0.0; CREEP_TERMS];
+    for (k, t) in taus_s.iter_mut().take(terms).enumerate() {
+        *t = first * 10f64.powi(k as i32);
+    }
+    Creep {
+        ratio: e.get("ratio"),
+        taus_s,
+        terms,
+    }
 }
 
 /// Load masses of each `mechanical_load` form.

@@ -721,6 +721,10 @@ pub fn draw_with(
 /// [`draw_with`] on `rod`'s own Preisach measure (the parameter file's constants, the rod's
 /// measure on the plant's grid: `crate::rods`), each effect in a form of `forms`; the effects
 /// are calibrated on that plant.
+///
+/// The case's stream gives, in this order, the bench's nuisances, the start state, the standard
+/// sweep and each effect's magnitude and shape; the forms' stream each effect's form and the
+/// keys of one form only (`shaped`).
 pub fn draw_on(
     params: &ActuatorParams,
     rod: Option<&Rod>,
@@ -732,20 +736,7 @@ pub fn draw_on(
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let mut form_rng = rand::rngs::StdRng::seed_from_u64(seed ^ FORM_STREAM);
     let varied = (design == Design::Varied).then(|| varied_design(seed));
-    let settings = BenchSettings {
-        rate_hz: varied.as_ref().map_or(10_000.0, |v| v.0),
-        current_between_samples: if rng.random_bool(0.5) {
-            CurrentBetweenSamples::Hold
-        } else {
-            CurrentBetweenSamples::Linear
-        },
-        channel_skew_samples: rng.random_range(-0.8..0.8),
-        sensor_offset_m: rng.random_range(-2e-6..2e-6),
-        noise_m: log_uniform(&mut rng, 0.05e-6, 0.3e-6),
-        quantization_m: 2e-9,
-        seed: seed.wrapping_mul(31).wrapping_add(7),
-        coil_current: None,
-    };
+    let settings = bench_settings(&mut rng, seed, varied.as_ref().map_or(10_000.0, |v| v.0));
     let starts = [
         StartState::SwitchOnDemagnetized,
         StartState::Demagnetized,
@@ -755,6 +746,63 @@ pub fn draw_on(
     ];
     let start = starts[rng.random_range(0..starts.len())];
     let documented = rng.random_bool(0.5);
+    // The varied design replaces the sweep; the standard one is still drawn, so that the
+    // effects, nuisances and start state are the standard design's.
+    let standard = standard_sweep(&mut rng, start);
+    let experiments = match &varied {
+        Some(v) => varied_sweep(v, start),
+        None => standard,
+    };
+    let drawn = draw_effects(
+        (params, rod),
+        &kind,
+        forms,
+        (&experiments, &settings),
+        (&mut rng, &mut form_rng),
+    )?;
+    Ok(Case {
+        seed,
+        kind,
+        effects: drawn.effects,
+        target_gaps: drawn.target_gaps,
+        gaps: drawn.gaps,
+        settings,
+        start,
+        documented,
+        experiments,
+        design,
+        sweep: varied.map_or(String::new(), |v| describe_varied(&v)),
+        rod: rod.cloned(),
+        forms,
+    })
+}
+
+/// The bench's nuisances (the current between samples, the channel skew, the sensor offset,
+/// the noise) drawn from `rng`, at `rate_hz`.
+fn bench_settings(rng: &mut impl Rng, seed: u64, rate_hz: f64) -> BenchSettings {
+    let current_between_samples = if rng.random_bool(0.5) {
+        CurrentBetweenSamples::Hold
+    } else {
+        CurrentBetweenSamples::Linear
+    };
+    let channel_skew_samples = rng.random_range(-0.8..0.8);
+    let sensor_offset_m = rng.random_range(-2e-6..2e-6);
+    let noise_m = log_uniform(rng, 0.05e-6, 0.3e-6);
+    BenchSettings {
+        rate_hz,
+        current_between_samples,
+        channel_skew_samples,
+        sensor_offset_m,
+        noise_m,
+        quantization_m: 2e-9,
+        seed: seed.wrapping_mul(31).wrapping_add(7),
+        coil_current: None,
+    }
+}
+
+/// The standard design's sweep (module docs): 6 frequencies from 20 to 400 Hz (each ±5 %) × 2
+/// amplitudes on one bias, 0.5 s each at 10 kHz, every record from `start`.
+fn standard_sweep(rng: &mut impl Rng, start: StartState) -> Vec<Experiment> {
     let bias: f64 = rng.random_range(0.45..0.6);
     let a1: f64 = rng.random_range(0.12..0.2);
     let a2 = (a1 * rng.random_range(1.8f64..2.2)).min(bias - 0.05);
@@ -773,25 +821,76 @@ pub fn draw_on(
             ));
         }
     }
-    // The varied design replaces the sweep; the draws above still happen, so that the effects,
-    // nuisances and start state are the standard design's.
-    if let Some((rate_hz, bias_a, amplitudes_a, frequencies_hz, duration_s)) = &varied {
-        experiments.clear();
-        for &f in frequencies_hz {
-            for &a in amplitudes_a {
-                experiments.push(sine_experiment(
-                    experiments.len(),
-                    start,
-                    *bias_a,
-                    a,
-                    f,
-                    *duration_s,
-                    *rate_hz,
-                ));
-            }
+    experiments
+}
+
+/// A varied design's sweep ([`varied_design`]'s `(rate_hz, bias_a, amplitudes_a,
+/// frequencies_hz, duration_s)`), every record from `start`.
+fn varied_sweep(
+    (rate_hz, bias_a, amplitudes_a, frequencies_hz, duration_s): &(
+        f64,
+        f64,
+        Vec<f64>,
+        Vec<f64>,
+        f64,
+    ),
+    start: StartState,
+) -> Vec<Experiment> {
+    let mut experiments = Vec::new();
+    for &f in frequencies_hz {
+        for &a in amplitudes_a {
+            experiments.push(sine_experiment(
+                experiments.len(),
+                start,
+                *bias_a,
+                a,
+                f,
+                *duration_s,
+                *rate_hz,
+            ));
         }
     }
-    let names: Vec<&'static str> = match &kind {
+    experiments
+}
+
+/// A varied design's sweep in one line (the case's `sweep`).
+fn describe_varied(
+    (rate_hz, bias_a, amps, freqs, duration_s): &(f64, f64, Vec<f64>, Vec<f64>, f64),
+) -> String {
+    format!(
+        "{} frequencies {:.0}-{:.0} Hz x {} amplitudes {:.3}-{:.3} A on {bias_a:.3} A, {:.2} s each at {:.0} kHz",
+        freqs.len(),
+        freqs[0],
+        freqs[freqs.len() - 1],
+        amps.len(),
+        amps[0],
+        amps[amps.len() - 1],
+        duration_s,
+        rate_hz / 1e3
+    )
+}
+
+/// A case's effects, each calibrated to the gap drawn for it.
+struct DrawnEffects {
+    effects: Vec<Effect>,
+    /// The gaps drawn, one per effect.
+    target_gaps: Vec<f64>,
+    /// The gaps reached.
+    gaps: Vec<f64>,
+}
+
+/// The effects of `kind`, each in a form of `forms`, its shape drawn and its magnitude
+/// calibrated on the plant `(params, rod)` to a gap drawn log-uniform in 5–30 % (5–20 % for each
+/// of a pair) on the case's `(experiments, settings)`; the case's and the forms' streams in
+/// `rngs`.
+fn draw_effects(
+    (params, rod): (&ActuatorParams, Option<&Rod>),
+    kind: &Kind,
+    forms: Forms,
+    (experiments, settings): (&[Experiment], &BenchSettings),
+    (rng, form_rng): (&mut impl Rng, &mut impl Rng),
+) -> Result<DrawnEffects, String> {
+    let names: Vec<&'static str> = match kind {
         Kind::Single(e) | Kind::OutOfLibrary(e) => vec![e],
         Kind::Pair(a, b) => vec![a, b],
         Kind::NoiseOnly => vec![],
@@ -801,14 +900,16 @@ pub fn draw_on(
     } else {
         (0.05, 0.30)
     };
-    let mut effects = Vec::new();
-    let mut target_gaps = Vec::new();
-    let mut gaps = Vec::new();
+    let mut drawn = DrawnEffects {
+        effects: Vec::new(),
+        target_gaps: Vec::new(),
+        gaps: Vec::new(),
+    };
     // The plant without effects, the reference of every calibration below (none: noise only).
     let without = if names.is_empty() {
         GapRuns { runs: Vec::new() }
     } else {
-        GapRuns::new(params, rod, &[], &experiments, &settings)?
+        GapRuns::new(params, rod, &[], experiments, settings)?
     };
     let peak_current_a = experiments
         .iter()
@@ -817,20 +918,14 @@ pub fn draw_on(
     let constants = crate::PlantConstants::from_params(params);
     let eddy_rate_per_s = constants.c1_per_m_s / constants.c0_per_m;
     for name in names {
-        let form = forms.draw(Effect::spec(name)?.forms.len(), &mut form_rng);
-        let target = log_uniform(&mut rng, lo, hi);
+        let form = forms.draw(Effect::spec(name)?.forms.len(), form_rng);
+        let target = log_uniform(rng, lo, hi);
         // An effect whose plausible range cannot reach the target gets a new shape (up to eight
         // draws; then the one that came closest is kept).
         let mut result: Option<(Effect, f64)> = None;
         for _ in 0..8 {
-            let e = shaped(
-                name,
-                form,
-                (peak_current_a, eddy_rate_per_s),
-                &mut rng,
-                &mut form_rng,
-            )?;
-            let (e, g) = calibrate(params, rod, &e, target, &experiments, &settings, &without)?;
+            let e = shaped(name, form, (peak_current_a, eddy_rate_per_s), rng, form_rng)?;
+            let (e, g) = calibrate(params, rod, &e, target, experiments, settings, &without)?;
             let reached = g >= 0.9 * target;
             if result.as_ref().is_none_or(|(_, best)| g > *best) {
                 result = Some((e, g));
@@ -840,38 +935,11 @@ pub fn draw_on(
             }
         }
         let (e, g) = result.ok_or("no draw")?;
-        effects.push(e);
-        target_gaps.push(target);
-        gaps.push(g);
+        drawn.effects.push(e);
+        drawn.target_gaps.push(target);
+        drawn.gaps.push(g);
     }
-    let sweep = varied.map_or(String::new(), |(rate_hz, bias_a, amps, freqs, duration_s)| {
-        format!(
-            "{} frequencies {:.0}-{:.0} Hz x {} amplitudes {:.3}-{:.3} A on {bias_a:.3} A, {:.2} s each at {:.0} kHz",
-            freqs.len(),
-            freqs[0],
-            freqs[freqs.len() - 1],
-            amps.len(),
-            amps[0],
-            amps[amps.len() - 1],
-            duration_s,
-            rate_hz / 1e3
-        )
-    });
-    Ok(Case {
-        seed,
-        kind,
-        effects,
-        target_gaps,
-        gaps,
-        settings,
-        start,
-        documented,
-        experiments,
-        design,
-        sweep,
-        rod: rod.cloned(),
-        forms,
-    })
+    Ok(drawn)
 }
 
 /// The effects of the plant by library membership.

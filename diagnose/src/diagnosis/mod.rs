@@ -4,7 +4,8 @@
 //! # Steps
 //!
 //! Each step has its module (private ones named without a link): `recording` (steps 1–5, with
-//! `split`), `singles` (6–7), `pairs` (8), `verdict`; `scoring` scores a fit, [`rules`] holds
+//! `split`), `singles` (6–7), `pairs` (8), `verdict`, `assemble` (the report, with [`grade`] and
+//! [`advice`], steps 9–10); `scoring` scores a fit, [`rules`] holds
 //! every tuned constant, `report` what `diagnosis.json` holds.
 //!
 //! 1. **Experiments.** Each record's fundamental (the dominant frequency of its current),
@@ -141,6 +142,7 @@
 //! explanation that needs an implausible effect is none.
 
 pub mod advice;
+mod assemble;
 pub mod coil_current;
 pub mod coverage;
 pub mod grade;
@@ -170,13 +172,10 @@ use maglab_dataset::dataset_info::DatasetInfo;
 use maglab_model::effects::EffectName;
 use maglab_model::experiments::{experiment_data, ExperimentInfo};
 use maglab_model::fit::{ExperimentData, FitSettings};
-use maglab_model::plan_fit::PlanFitter;
-use pairs::SecondStage;
-use recording::Recording;
+use maglab_model::plan_fit::{PlanFit, PlanFitter};
 use rules::MAX_SUBSTEPS_FACTOR;
 use scoring::Scorer;
 use singles::{Gaps, Stage};
-use std::collections::BTreeMap;
 
 /// Settings of the diagnosis.
 #[derive(Debug, Clone, PartialEq)]
@@ -389,44 +388,27 @@ fn diagnose_at(
         base: &base,
         gaps,
     };
-    // Steps 6-7: the single candidates.
-    let (mut ranked, mut singles_tie) =
-        singles::fit_library(&stage, &refit, &common_start, &options.library, progress);
-    progress(1);
-    let mut winner = ranked.iter().position(|r| r.0.significant);
-    // Step 8: a second effect.
-    let plan = pairs::plan(&stage, &ranked, winner, refit_result.training_rms_m);
-    let second = pairs::second_stage(&stage, &ranked, plan);
-    if second.winner.is_none()
-        && !second.single_refits.is_empty()
-        && singles::take_better_optima(&stage, &mut ranked, second.single_refits.clone())
-    {
-        singles_tie = scoring::sort_by_held_out(&mut ranked, |r| r.significant);
-        winner = ranked.iter().position(|r| r.0.significant);
-    }
-    let verdict = verdict::decide(
-        &ranked,
-        winner,
-        second.winner.as_ref(),
+    // Steps 6-8: the candidates.
+    let candidates = candidates(
+        &stage,
+        &refit,
+        &common_start,
+        &options.library,
+        refit_result.training_rms_m,
+        progress,
+    );
+    let (verdict, held_out_tie) = decide(
+        &candidates,
         (&refit.fitted.values, &refit_result, &base),
         &gaps,
         model_error_m,
     );
-    let held_out_tie = verdict::tie_of(
-        &verdict.name,
-        second.winner.as_ref(),
-        second.tie.clone(),
-        singles_tie,
-        winner.map(|w| ranked[w].0.effect.as_str()),
-    );
-    let run = assemble(Assembly {
+    let run = assemble::assemble(assemble::Assembly {
         params,
         measurements,
         options,
         rec,
-        ranked,
-        winner,
-        second,
+        candidates,
         verdict,
         held_out_tie,
         refit_result,
@@ -437,269 +419,74 @@ fn diagnose_at(
     Ok(Attempt::Done(Box::new(run)))
 }
 
-/// What [`assemble`] puts together.
-struct Assembly<'a> {
-    params: &'a actuator_params::ActuatorParams,
-    measurements: &'a [Measurement],
-    options: &'a DiagnoseOptions,
-    rec: Recording,
+/// What the candidate steps give the verdict.
+struct Candidates {
+    /// The single candidates, best on the held-out experiments first (after any better optima
+    /// the second stage found).
     ranked: Vec<scoring::Ranked>,
+    /// The significant best single candidate's index in `ranked`.
     winner: Option<usize>,
-    second: SecondStage,
-    verdict: verdict::Verdict,
-    held_out_tie: Option<HeldOutTie>,
-    refit_result: CandidateResult,
-    constants_range: ConstantsRange,
-    model_error_m: f64,
-    unmeasured_loops: Vec<coverage::UnmeasuredLoop>,
+    /// The pairs.
+    second: pairs::SecondStage,
+    /// The held-out tie among the single candidates, if any.
+    singles_tie: Option<HeldOutTie>,
 }
 
-/// The report and the traces: the verdict with the effects the parameter file models, the
-/// lists around it, and every step's results.
-fn assemble(a: Assembly<'_>) -> DiagnosisRun {
-    let Assembly {
-        params,
-        measurements,
-        options,
-        rec,
+/// Steps 6–8: each library effect fitted alone and scored against the refitted nominal model
+/// (`refit`, whose training RMS is `nominal_training_rms_m`), then the second stage; when no
+/// pair is named, the refits of one effect alone it made replace that effect's single fit where
+/// they are a better optimum of it, and the single candidates are ranked again.
+fn candidates(
+    stage: &Stage<'_>,
+    refit: &PlanFit,
+    common_start: &[f64],
+    library: &[EffectName],
+    nominal_training_rms_m: f64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Candidates {
+    let (mut ranked, mut singles_tie) =
+        singles::fit_library(stage, refit, common_start, library, progress);
+    progress(1);
+    let mut winner = ranked.iter().position(|r| r.0.significant);
+    let plan = pairs::plan(stage, &ranked, winner, nominal_training_rms_m);
+    let second = pairs::second_stage(stage, &ranked, plan);
+    if second.winner.is_none()
+        && !second.single_refits.is_empty()
+        && singles::take_better_optima(stage, &mut ranked, second.single_refits.clone())
+    {
+        singles_tie = scoring::sort_by_held_out(&mut ranked, |r| r.significant);
+        winner = ranked.iter().position(|r| r.0.significant);
+    }
+    Candidates {
         ranked,
         winner,
         second,
-        verdict,
-        held_out_tie,
-        refit_result,
-        constants_range,
+        singles_tie,
+    }
+}
+
+/// Step 7's verdict from the candidates, the refitted nominal model (its fitted values, scores
+/// and prediction) and the gaps, with the held-out tie the verdict's fit was in.
+fn decide(
+    c: &Candidates,
+    refitted_nominal: (&[f64], &CandidateResult, &scoring::Scored),
+    gaps: &Gaps,
+    model_error_m: f64,
+) -> (verdict::Verdict, Option<HeldOutTie>) {
+    let verdict = verdict::decide(
+        &c.ranked,
+        c.winner,
+        c.second.winner.as_ref(),
+        refitted_nominal,
+        gaps,
         model_error_m,
-        unmeasured_loops,
-    } = a;
-    let mut additional_effects: Vec<String> = second
-        .winner
-        .iter()
-        .flat_map(|(_, _, names)| names.iter().skip(1).map(|n| n.name().to_string()))
-        .collect();
-    let effects_in_parameter_file = effects_identified_into(params);
-    let (mut name, mut reason) = (verdict.name, verdict.reason);
-    verdict::add_file_effects(
-        &effects_in_parameter_file,
-        &mut name,
-        &mut reason,
-        &mut additional_effects,
     );
-    let ambiguous_with = verdict::ambiguous_with(&ranked, winner, &name);
-    let equal_on_training = match winner {
-        Some(w) if name == ranked[w].0.effect => {
-            equal_on_training(&ranked[w].0, ranked.iter().map(|r| &r.0))
-        }
-        _ => Vec::new(),
-    };
-    let traces = traces(measurements, &rec, &verdict.predictions);
-    // The effects the verdict names: the first, then the pair's second or the file's own.
-    let verdict_effects: Vec<String> = std::iter::once(name.clone())
-        .chain(additional_effects.iter().cloned())
-        .collect();
-    let also_significant = also_significant(
-        &ranked.iter().map(|r| &r.0).collect::<Vec<_>>(),
-        &verdict_effects
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
+    let held_out_tie = verdict::tie_of(
+        &verdict.name,
+        c.second.winner.as_ref(),
+        c.second.tie.clone(),
+        c.singles_tie.clone(),
+        c.winner.map(|w| c.ranked[w].0.effect.as_str()),
     );
-    let coil_current_measured = options.measured_current_input;
-    let graded = grade::grade(
-        &name,
-        &additional_effects,
-        &ranked.iter().map(|r| r.0.clone()).collect::<Vec<_>>(),
-        (rec.noise_m, rec.range_m),
-        coil_current_measured,
-    );
-    reason = with_grade(reason, &graded, &verdict_effects, coil_current_measured);
-    let dynamic_count = rec.dynamic.len();
-    let unmeasured_loops_warning = coverage::warning(&unmeasured_loops, dynamic_count);
-    if unmeasured_loops_warning.is_some() && name != "none" {
-        reason = format!(
-            "{reason}; the parameter file's masses were not measured on {} of the {dynamic_count} \
-             dynamic loops (unmeasured_loops): part of the gap may be theirs, not an effect's",
-            unmeasured_loops.len()
-        );
-    }
-    let rig = advice::Rig {
-        resonance_hz: params.actuator.resonance_hz,
-        resonance_factor: constants_range.factors[2],
-        current_limit_a: params.control.current_limit_a,
-        sample_rate_hz: rec.rate_hz,
-        coil_current_measured,
-    };
-    let named: Vec<String> = verdict_effects
-        .into_iter()
-        .chain(graded.partly.iter().map(|p| p.effect.clone()))
-        .collect();
-    let also_listed = listed_beside(&ambiguous_with, &equal_on_training, &also_significant);
-    let advice = what_to_record(
-        &named,
-        &graded,
-        &also_listed,
-        &ranked,
-        &unmeasured_loops,
-        options
-            .commanded_experiments
-            .as_deref()
-            .unwrap_or(&rec.infos),
-        rig,
-    );
-    // (A `none` the parameter file's own effects replaced above is not `none`.)
-    let none_by_model_error = verdict.none_by_model_error && name == "none";
-    DiagnosisRun {
-        diagnosis: Diagnosis {
-            verdict: name,
-            verdict_reason: reason,
-            grade: graded.grade,
-            partly_explained: graded.partly,
-            either: graded.either,
-            advice,
-            ambiguous_with,
-            equal_on_training,
-            held_out_tie,
-            additional_effects,
-            second_stage: second.results,
-            second_stage_reason: second.reason,
-            criterion: CRITERION.to_string(),
-            noise_m: rec.noise_m,
-            displacement_range_m: rec.range_m,
-            nominal_rms_m: rec.nominal_rms_m,
-            nominal_systematic_m: recording::nominal_systematic_m(&rec),
-            model_error_m,
-            substeps: options.substeps,
-            substeps_raised: None,
-            none_by_model_error,
-            also_significant,
-            constants_range,
-            effects_in_parameter_file,
-            parameter_file_warnings: params
-                .provenance
-                .warnings()
-                .into_iter()
-                .map(String::from)
-                .collect(),
-            unmeasured_loops,
-            unmeasured_loops_warning,
-            datasheet_priors: maglab_model::priors::uses_of(params)
-                .iter()
-                .map(|u| u.to_json())
-                .collect(),
-            coil_current: None,
-            refitted_nominal: refit_result,
-            nuisance: rec.nuisance,
-            experiments: rec.infos,
-            ranking: ranked.into_iter().map(|r| r.0).collect(),
-            where_: rec.where_,
-        },
-        traces,
-    }
-}
-
-/// Each experiment's measured, nominal and verdict-model traces for the plots
-/// (`predictions`: the verdict's model, by experiment; the nominal model's where it has none).
-fn traces(
-    measurements: &[Measurement],
-    rec: &Recording,
-    predictions: &BTreeMap<usize, Vec<f64>>,
-) -> Vec<Trace> {
-    (0..measurements.len())
-        .map(|k| Trace {
-            name: rec.infos[k].name.clone(),
-            rate_hz: rec.rate_hz,
-            current_a: measurements[k].current_a.clone(),
-            measured_m: measurements[k].displacement_m.clone(),
-            nominal_m: rec.nominal_preds[k].clone(),
-            augmented_m: predictions
-                .get(&k)
-                .cloned()
-                .unwrap_or_else(|| rec.nominal_preds[k].clone()),
-        })
-        .collect()
-}
-
-/// The verdict's `reason` with what its grade adds: the share a partly explaining effect
-/// accounts for, why "X or Y" cannot be separated, and for a pair (`verdict_effects`) on the
-/// commanded current alone the effect its term may be instead ([`grade::pair_caveat`]).
-fn with_grade(
-    mut reason: String,
-    graded: &grade::Graded,
-    verdict_effects: &[String],
-    coil_current_measured: bool,
-) -> String {
-    if let Some(p) = &graded.partly {
-        reason = format!(
-            "{reason}; partly explained by {} ({:.0} ± {:.0} % of the gap's energy, at least \
-             {:.0} % in every held-out band), the rest unexplained",
-            p.effect,
-            100.0 * p.share_of_gap,
-            100.0 * p.share_spread,
-            100.0 * p.lowest_band_share
-        );
-    }
-    if let [a, b] = graded.either.as_slice() {
-        reason = format!(
-            "{reason}; {a} or {b}: {}, these experiments cannot separate them",
-            graded.either_reason
-        );
-    }
-    if graded.grade == grade::Grade::Pair {
-        if let Some(caveat) = grade::pair_caveat(verdict_effects, coil_current_measured) {
-            reason = format!("{reason}; {caveat}");
-        }
-    }
-    reason
-}
-
-/// The effects the report lists beside the verdict: as good on the held-out experiments, as
-/// good on the training ones, significant as well.
-fn listed_beside(
-    ambiguous_with: &[String],
-    equal_on_training: &[String],
-    also_significant: &[AlsoSignificant],
-) -> Vec<String> {
-    ambiguous_with
-        .iter()
-        .chain(equal_on_training)
-        .cloned()
-        .chain(also_significant.iter().map(|a| a.effect.clone()))
-        .collect()
-}
-
-/// Step 10, the advice: the loops the masses lack first, then for each pair of candidates the
-/// report could not separate — the named effects (`named`, the partly explaining one included)
-/// against the `either` pair, the two best runners-up and the effects `also_listed` beside the
-/// verdict — the recording that separates them on this rig, at most [`advice::MAX_ADVICE`].
-fn what_to_record(
-    named: &[String],
-    graded: &grade::Graded,
-    also_listed: &[String],
-    ranked: &[scoring::Ranked],
-    unmeasured_loops: &[coverage::UnmeasuredLoop],
-    experiments: &[ExperimentInfo],
-    rig: advice::Rig,
-) -> Vec<advice::Advice> {
-    let runners_up: Vec<&str> = ranked
-        .iter()
-        .map(|r| r.0.effect.as_str())
-        .filter(|e| !named.iter().any(|n| n == e) && *e != "nominal")
-        .take(2)
-        .collect();
-    let mut advice: Vec<advice::Advice> = advice::measure_loops(unmeasured_loops, rig)
-        .into_iter()
-        .collect();
-    advice.extend(advice::advise(
-        &advice::candidate_pairs(
-            named,
-            &graded.either,
-            &runners_up,
-            also_listed,
-            graded.grade,
-        ),
-        experiments,
-        rig,
-    ));
-    advice.truncate(advice::MAX_ADVICE);
-    advice
+    (verdict, held_out_tie)
 }

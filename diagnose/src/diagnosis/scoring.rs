@@ -217,29 +217,11 @@ impl Scorer<'_> {
         let f = &plan_fit.fitted;
         let before = self.rms(base, self.held_out);
         let after = self.rms(s, self.held_out);
-        let (mut improved, mut worse) = (0, 0);
-        for &k in self.held_out {
-            let (b, a) = (self.rms(base, &[k]), self.rms(s, &[k]));
-            if a < b {
-                improved += 1;
-            }
-            if a > WORSE_RMS_FACTOR * b + WORSE_NOISE_SHARE * self.noise_m {
-                worse += 1;
-            }
-        }
+        let (improved, worse) = self.improved_and_worse(s, base);
         let sys_before = systematic(before, self.noise_m);
         let sys_after = systematic(after, self.noise_m);
-        let effects = f.candidate.effects.len();
-        let knocked_out = if effects == 0 {
-            before
-        } else {
-            let k = PlanFit {
-                fitted: f.knocked_out(effects - 1),
-                plan: plan_fit.plan,
-            };
-            self.rms(&self.predict(&k), self.held_out)
-        };
         let pinned: Vec<String> = f.pinned();
+        let effects = f.candidate.effects.len();
         let passes = |knocked_out: f64| {
             effects > 0
                 && pinned.is_empty()
@@ -251,10 +233,72 @@ impl Scorer<'_> {
                 }
                 && worse as f64 <= MAX_WORSE_SHARE * self.held_out.len() as f64
         };
-        // Confirmation: the knocked-out model refitted from this fit's own values must not
-        // reach what the candidate reaches (else the candidate only found a better optimum of
-        // the shared parameters).
-        let (knocked_out, significant) = match self.fitter {
+        let (knocked_out, significant) = self.knock_out(plan_fit, before, passes);
+        CandidateResult {
+            effect: f.candidate.name(),
+            parameters: f
+                .report_names()
+                .into_iter()
+                .zip(f.values.iter().copied())
+                .collect(),
+            training_rms_m: f.training_rms_m,
+            held_out_rms_before_m: before,
+            held_out_rms_after_m: after,
+            held_out_reduction: before / after.max(1e-300),
+            systematic_before_m: sys_before,
+            systematic_after_m: sys_after,
+            improved_experiments: improved,
+            worse_experiments: worse,
+            held_out_experiments: self.held_out.len(),
+            knocked_out_rms_m: knocked_out,
+            pinned,
+            constants_at_range_end: f.shared_at_range_end(),
+            significant,
+            per_band: self.per_band(s, base),
+            evaluations: f.evaluations,
+        }
+    }
+
+    /// How many held-out experiments `s` fits better than `base`, and how many it makes worse
+    /// (RMS up by more than [`WORSE_RMS_FACTOR`] and [`WORSE_NOISE_SHARE`] σ).
+    fn improved_and_worse(&self, s: &Scored, base: &Scored) -> (usize, usize) {
+        let (mut improved, mut worse) = (0, 0);
+        for &k in self.held_out {
+            let (b, a) = (self.rms(base, &[k]), self.rms(s, &[k]));
+            if a < b {
+                improved += 1;
+            }
+            if a > WORSE_RMS_FACTOR * b + WORSE_NOISE_SHARE * self.noise_m {
+                worse += 1;
+            }
+        }
+        (improved, worse)
+    }
+
+    /// The knock-out test: the held-out RMS of the fit with its last effect switched off
+    /// (`before`, the refitted nominal model's, for the nominal candidate itself) and whether the
+    /// candidate `passes` against it. When it passes and the fitter is at hand, the knocked-out
+    /// model is also refitted from this fit's own values and the lower of the two knock-out
+    /// errors (the stricter test) decides: if the refit reaches what the candidate reaches, the
+    /// candidate only found a better optimum of the shared parameters.
+    fn knock_out(
+        &self,
+        plan_fit: &PlanFit,
+        before: f64,
+        passes: impl Fn(f64) -> bool,
+    ) -> (f64, bool) {
+        let f = &plan_fit.fitted;
+        let effects = f.candidate.effects.len();
+        let knocked_out = if effects == 0 {
+            before
+        } else {
+            let k = PlanFit {
+                fitted: f.knocked_out(effects - 1),
+                plan: plan_fit.plan,
+            };
+            self.rms(&self.predict(&k), self.held_out)
+        };
+        match self.fitter {
             Some(fitter) if passes(knocked_out) => {
                 let k = f.knocked_out(effects - 1);
                 let again = fitter.fit_from(
@@ -268,7 +312,12 @@ impl Scorer<'_> {
                 (worst, passes(worst))
             }
             _ => (knocked_out, passes(knocked_out)),
-        };
+        }
+    }
+
+    /// The RMS errors of `base` and `s` per frequency group of the dynamic experiments, with the
+    /// group's mean fundamental and whether it is held out.
+    fn per_band(&self, s: &Scored, base: &Scored) -> Vec<BandError> {
         let groups = self
             .dynamic
             .iter()
@@ -276,7 +325,7 @@ impl Scorer<'_> {
             .max()
             .unwrap_or(0)
             + 1;
-        let per_band = (0..groups)
+        (0..groups)
             .filter_map(|g| {
                 let which: Vec<usize> = self
                     .dynamic
@@ -298,29 +347,6 @@ impl Scorer<'_> {
                     held_out: self.infos[which[0]].held_out,
                 })
             })
-            .collect();
-        CandidateResult {
-            effect: f.candidate.name(),
-            parameters: f
-                .report_names()
-                .into_iter()
-                .zip(f.values.iter().copied())
-                .collect(),
-            training_rms_m: f.training_rms_m,
-            held_out_rms_before_m: before,
-            held_out_rms_after_m: after,
-            held_out_reduction: before / after.max(1e-300),
-            systematic_before_m: sys_before,
-            systematic_after_m: sys_after,
-            improved_experiments: improved,
-            worse_experiments: worse,
-            held_out_experiments: self.held_out.len(),
-            knocked_out_rms_m: knocked_out,
-            pinned,
-            constants_at_range_end: f.shared_at_range_end(),
-            significant,
-            per_band,
-            evaluations: f.evaluations,
-        }
+            .collect()
     }
 }

@@ -141,32 +141,24 @@ pub fn choose(
     options: &MassOptions,
     without: MassIdentification,
 ) -> Result<Decided, IdentifyError> {
-    let limit = quality::QUASI_STATIC_NRMSE_LIMIT;
     let ms = base.params.actuator.saturation_magnetization_a_per_m;
-    let mass_ratio = without.fit.weights.iter().sum::<f64>() / ms;
-    let decision =
-        |chosen: &'static str, reason: String, figures: &[(&'static str, f64)]| ReversibleChoice {
-            chosen,
-            reason,
-            mass_sum_over_saturation_without: mass_ratio,
-            figures: figures.to_vec(),
-        };
-    let keep_without = |choice, without, first_pass| Decided {
-        choice,
-        masses: without,
-        options: options.clone(),
-        first_pass,
+    let choosing = Choosing {
+        options,
+        mass_ratio: without.fit.weights.iter().sum::<f64>() / ms,
     };
+    let mass_ratio = choosing.mass_ratio;
+    // Rule 1.
     if mass_ratio <= MASS_SUM_PAST_SATURATION {
-        let choice = decision(
+        let choice = choosing.decision(
             "none",
             format!(
                 "none: the masses of the paper's model sum to {mass_ratio:.4} x M_s (<= {MASS_SUM_PAST_SATURATION})"
             ),
             &[],
         );
-        return Ok(keep_without(choice, without, None));
+        return Ok(choosing.keep_without(choice, without, None));
     }
+    // Rule 2.
     let with_options = MassOptions {
         fit: FitOptions {
             reversible: Reversible::PiecewiseNoOffset,
@@ -178,69 +170,155 @@ pub fn choose(
     let with = identify_masses(&dataset, base.params, base.name, &with_options)
         .map_err(|e| IdentifyError::step("Preisach masses with a reversible part", e))?;
     let sweep_with = worst_quasi_static_nrmse(&with);
-    let sweep = [("worst_quasi_static_nrmse_with", sweep_with)];
-    let past = format!("the masses of the paper's model sum to {mass_ratio:.4} x M_s");
+    let limit = quality::QUASI_STATIC_NRMSE_LIMIT;
     if sweep_with > limit {
-        let choice = decision(
+        let choice = choosing.decision(
             "none",
             format!(
-                "none: {past}, but with a reversible part the quasi-static records are missed by \
+                "none: {}, but with a reversible part the quasi-static records are missed by \
                  {:.2} % NRMSE (> {:.0} %)",
+                choosing.past(),
                 100.0 * sweep_with,
                 100.0 * limit
             ),
-            &sweep,
+            &[("worst_quasi_static_nrmse_with", sweep_with)],
         );
-        return Ok(keep_without(choice, without, None));
+        return Ok(choosing.keep_without(choice, without, None));
     }
+    let with = Candidate {
+        masses: with,
+        options: with_options,
+        sweep_nrmse: sweep_with,
+    };
     if stage.dataset.split.dynamic.is_empty() || !stage.options.waveform_fit {
         let reason = format!(
-            "piecewise: {past}; with a reversible part the masses sum to at most M_s and the \
+            "piecewise: {}; with a reversible part the masses sum to at most M_s and the \
              quasi-static records are met within {:.2} % NRMSE (no sines to check it on)",
+            choosing.past(),
             100.0 * sweep_with
         );
-        return Ok(Decided {
-            choice: decision("piecewise", reason, &sweep),
-            masses: with,
-            options: with_options,
-            first_pass: None,
-        });
+        let choice = choosing.decision("piecewise", reason, &with.sweep_figure());
+        return Ok(with.chosen(choice, None));
     }
-    let fit_without = stage.fit(&without.params, None)?;
-    let fit_with = stage.fit(&with.params, None)?;
-    let (low_without, low_with) = (
-        lowest_frequency_nrmse(&fit_without).unwrap_or(f64::INFINITY),
-        lowest_frequency_nrmse(&fit_with).unwrap_or(f64::INFINITY),
-    );
-    let figures = [
-        sweep[0],
-        ("lowest_frequency_sine_nrmse_without", low_without),
-        ("lowest_frequency_sine_nrmse_with", low_with),
-    ];
-    let sines = format!(
-        "the lowest-frequency sines are predicted within {:.2} % NRMSE with a reversible part, \
-         {:.2} % without",
-        100.0 * low_with,
-        100.0 * low_without
-    );
-    if low_with <= low_without {
-        let reason = format!(
-            "piecewise: {past}; with a reversible part they sum to at most M_s, the quasi-static \
-             records are met within {:.2} % NRMSE and {sines}",
-            100.0 * sweep_with
+    // Rule 3.
+    choosing.by_the_sines(stage, without, with)
+}
+
+/// What every decision of [`choose`] shares: the mass options, and the paper's model's mass
+/// sum over `M_s`.
+struct Choosing<'a> {
+    options: &'a MassOptions,
+    mass_ratio: f64,
+}
+
+/// The model with a reversible part, once it met the quasi-static records (rule 2).
+struct Candidate {
+    masses: MassIdentification,
+    options: MassOptions,
+    /// Its worst quasi-static record's NRMSE.
+    sweep_nrmse: f64,
+}
+
+impl Candidate {
+    /// The figure rule 2 rests on, for the provenance.
+    fn sweep_figure(&self) -> [(&'static str, f64); 1] {
+        [("worst_quasi_static_nrmse_with", self.sweep_nrmse)]
+    }
+
+    /// The decision to keep the reversible part (`first_pass`: its dynamic fit, when rule 3 ran).
+    fn chosen(self, choice: ReversibleChoice, first_pass: Option<DynamicFit>) -> Decided {
+        Decided {
+            choice,
+            masses: self.masses,
+            options: self.options,
+            first_pass,
+        }
+    }
+}
+
+impl Choosing<'_> {
+    /// The decision record: `chosen`, why, and the figures it compared.
+    fn decision(
+        &self,
+        chosen: &'static str,
+        reason: String,
+        figures: &[(&'static str, f64)],
+    ) -> ReversibleChoice {
+        ReversibleChoice {
+            chosen,
+            reason,
+            mass_sum_over_saturation_without: self.mass_ratio,
+            figures: figures.to_vec(),
+        }
+    }
+
+    /// The decision to keep the paper's model (`first_pass`: its dynamic fit, when rule 3 ran).
+    fn keep_without(
+        &self,
+        choice: ReversibleChoice,
+        without: MassIdentification,
+        first_pass: Option<DynamicFit>,
+    ) -> Decided {
+        Decided {
+            choice,
+            masses: without,
+            options: self.options.clone(),
+            first_pass,
+        }
+    }
+
+    /// Rule 1's finding, the start of every later reason.
+    fn past(&self) -> String {
+        format!(
+            "the masses of the paper's model sum to {:.4} x M_s",
+            self.mass_ratio
+        )
+    }
+
+    /// Rule 3: `R_eddy`, `ξ`, `f0` identified on either model; the reversible part is kept when
+    /// it predicts the lowest-frequency sines no worse.
+    fn by_the_sines(
+        &self,
+        stage: &DynamicStage<'_>,
+        without: MassIdentification,
+        with: Candidate,
+    ) -> Result<Decided, IdentifyError> {
+        let fit_without = stage.fit(&without.params, None)?;
+        let fit_with = stage.fit(&with.masses.params, None)?;
+        let (low_without, low_with) = (
+            lowest_frequency_nrmse(&fit_without).unwrap_or(f64::INFINITY),
+            lowest_frequency_nrmse(&fit_with).unwrap_or(f64::INFINITY),
         );
-        Ok(Decided {
-            choice: decision("piecewise", reason, &figures),
-            masses: with,
-            options: with_options,
-            first_pass: Some(fit_with),
-        })
-    } else {
-        let choice = decision(
-            "none",
-            format!("none: {past}, but {sines}: the excess is not a change of M"),
-            &figures,
+        let figures = [
+            with.sweep_figure()[0],
+            ("lowest_frequency_sine_nrmse_without", low_without),
+            ("lowest_frequency_sine_nrmse_with", low_with),
+        ];
+        let sines = format!(
+            "the lowest-frequency sines are predicted within {:.2} % NRMSE with a reversible \
+             part, {:.2} % without",
+            100.0 * low_with,
+            100.0 * low_without
         );
-        Ok(keep_without(choice, without, Some(fit_without)))
+        if low_with <= low_without {
+            let reason = format!(
+                "piecewise: {}; with a reversible part they sum to at most M_s, the \
+                 quasi-static records are met within {:.2} % NRMSE and {sines}",
+                self.past(),
+                100.0 * with.sweep_nrmse
+            );
+            let choice = self.decision("piecewise", reason, &figures);
+            Ok(with.chosen(choice, Some(fit_with)))
+        } else {
+            let choice = self.decision(
+                "none",
+                format!(
+                    "none: {}, but {sines}: the excess is not a change of M",
+                    self.past()
+                ),
+                &figures,
+            );
+            Ok(self.keep_without(choice, without, Some(fit_without)))
+        }
     }
 }

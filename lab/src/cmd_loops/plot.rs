@@ -16,39 +16,64 @@ struct Curve {
     points: Vec<(f64, f64)>,
 }
 
+/// Writes both figures into `out`; returns the files written.
 pub(super) fn plot(
     loaded: &LoadedParams,
     set: &LoopSet,
     out: &std::path::Path,
 ) -> Result<Vec<PathBuf>> {
     let act = &loaded.params.actuator;
-    let m_s = f64::from(act.saturation_magnetization_a_per_m);
-    let c0 = f64::from(act.coil_factor_per_m);
-    let stroke_um = f64::from(act.stroke_m()) * 1e6;
+    let rod = Rod {
+        m_s: f64::from(act.saturation_magnetization_a_per_m),
+        c0: f64::from(act.coil_factor_per_m),
+        stroke_um: f64::from(act.stroke_m()) * 1e6,
+    };
     let source = loaded
         .origin
         .rsplit('/')
         .next()
         .unwrap_or(&loaded.origin)
         .to_string();
+    let curves = curves(set);
+    let h_range_a_per_m = (set.major.h_lo_a_per_m, set.major.h_hi_a_per_m);
+    let mut files = one_panel(
+        magnetization_panel(&curves, &rod, h_range_a_per_m, &source),
+        &out.join("loops"),
+    )
+    .context("writing the M-H plot")?;
+    files.extend(
+        one_panel(
+            displacement_panel(&curves, &rod, h_range_a_per_m, &source),
+            &out.join("displacement"),
+        )
+        .context("writing the displacement plot")?,
+    );
+    Ok(files)
+}
 
-    // Drawn in this order, so the major loop lies on top of the minor loops and the initial
-    // curve where they coincide.
+/// The constants the figures scale by: `M_s` (A/m), the coil factor `c0` (1/m), the stroke (µm).
+struct Rod {
+    m_s: f64,
+    c0: f64,
+    stroke_um: f64,
+}
+
+/// The loops to draw, in drawing order: the symmetric minor loops, the initial curve, the major
+/// loop on top of them and the biased loop, so the major loop lies over the minor ones and the
+/// initial curve shows where they coincide.
+fn curves(set: &LoopSet) -> Vec<Curve> {
     let curve = |name: &str, color: usize, width: u32, points: Vec<(f64, f64)>| Curve {
         name: name.to_string(),
         color: PALETTE[color],
         width,
         points,
     };
-    let mut curves = Vec::new();
-    for (k, l) in set.symmetric.iter().enumerate() {
-        curves.push(curve(
-            &l.name,
-            [1, 2, 3, 4, 6][k % 5],
-            2,
-            l.polyline().collect(),
-        ));
-    }
+    let mut curves: Vec<Curve> = set
+        .symmetric
+        .iter()
+        .enumerate()
+        .map(|(k, l)| curve(&l.name, [1, 2, 3, 4, 6][k % 5], 2, l.polyline().collect()))
+        .collect();
     curves.push(curve("initial curve", 7, 3, set.initial.clone()));
     curves.push(curve(&set.major.name, 0, 2, set.major.polyline().collect()));
     curves.push(curve(
@@ -57,68 +82,86 @@ pub(super) fn plot(
         3,
         set.biased.polyline().collect(),
     ));
+    curves
+}
 
+/// `M` against `H`, kA/m, with `±M_s` over the major loop's field range `(lo, hi)`, A/m.
+fn magnetization_panel(
+    curves: &[Curve],
+    rod: &Rod,
+    (h_lo_a_per_m, h_hi_a_per_m): (f64, f64),
+    source: &str,
+) -> Panel {
     let mut mh = Panel::new(
         &format!("Preisach loops M = Γ[H] ({source})"),
         "H (kA/m)",
         "M (kA/m)",
     );
-    let mut yi = Panel::new(
-        &format!("Static model (6): y = l_m λ_s M²/M_s² ({source})"),
-        "I = H/c0 (A)",
-        "y (µm)",
-    );
-    yi.legend = SeriesLabelPosition::UpperMiddle;
-    let (h_lo, h_hi) = (set.major.h_lo_a_per_m / 1e3, set.major.h_hi_a_per_m / 1e3);
+    let (h_lo, h_hi) = (h_lo_a_per_m / 1e3, h_hi_a_per_m / 1e3);
     for (sign, label) in [(1.0, Some("±M_s".to_string())), (-1.0, None)] {
         mh.series.push(Series {
             label,
-            points: vec![(h_lo, sign * m_s / 1e3), (h_hi, sign * m_s / 1e3)],
+            points: vec![(h_lo, sign * rod.m_s / 1e3), (h_hi, sign * rod.m_s / 1e3)],
             color: PALETTE[7],
             width: 1,
         });
     }
-    yi.series.push(Series {
-        label: Some("stroke l_m λ_s".into()),
-        points: vec![(h_lo * 1e3 / c0, stroke_um), (h_hi * 1e3 / c0, stroke_um)],
-        color: PALETTE[7],
-        width: 1,
-    });
-    for c in &curves {
+    for c in curves {
         mh.series.push(Series {
             label: Some(c.name.clone()),
             points: c.points.iter().map(|&(h, m)| (h / 1e3, m / 1e3)).collect(),
             color: c.color,
             width: c.width,
         });
+    }
+    mh
+}
+
+/// The static model's displacement (6), µm, against the coil current `H/c0`, with the stroke
+/// over the major loop's field range `(lo, hi)`, A/m.
+fn displacement_panel(
+    curves: &[Curve],
+    rod: &Rod,
+    (h_lo_a_per_m, h_hi_a_per_m): (f64, f64),
+    source: &str,
+) -> Panel {
+    let mut yi = Panel::new(
+        &format!("Static model (6): y = l_m λ_s M²/M_s² ({source})"),
+        "I = H/c0 (A)",
+        "y (µm)",
+    );
+    yi.legend = SeriesLabelPosition::UpperMiddle;
+    yi.series.push(Series {
+        label: Some("stroke l_m λ_s".into()),
+        points: vec![
+            (h_lo_a_per_m / rod.c0, rod.stroke_um),
+            (h_hi_a_per_m / rod.c0, rod.stroke_um),
+        ],
+        color: PALETTE[7],
+        width: 1,
+    });
+    for c in curves {
         yi.series.push(Series {
             label: Some(c.name.clone()),
             points: c
                 .points
                 .iter()
-                .map(|&(h, m)| (h / c0, stroke_um * (m / m_s).powi(2)))
+                .map(|&(h, m)| (h / rod.c0, rod.stroke_um * (m / rod.m_s).powi(2)))
                 .collect(),
             color: c.color,
             width: c.width,
         });
     }
-    let mut files = Figure {
-        panels: vec![mh],
+    yi
+}
+
+/// A figure of one panel, 1000 × 750 px, as PNG and SVG at `stem`.
+fn one_panel(panel: Panel, stem: &std::path::Path) -> Result<Vec<PathBuf>> {
+    Figure {
+        panels: vec![panel],
         rows: 1,
         cols: 1,
         size_px: (1000, 750),
     }
-    .write(&out.join("loops"))
-    .context("writing the M-H plot")?;
-    files.extend(
-        Figure {
-            panels: vec![yi],
-            rows: 1,
-            cols: 1,
-            size_px: (1000, 750),
-        }
-        .write(&out.join("displacement"))
-        .context("writing the displacement plot")?,
-    );
-    Ok(files)
+    .write(stem)
 }

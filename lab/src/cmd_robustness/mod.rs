@@ -218,11 +218,63 @@ pub fn run(args: &Args) -> Result<()> {
         return Ok(());
     }
     let loaded = params_io::load(args.params.as_deref())?;
+    let settings = settings(args, &loaded.params)?;
+    let all = selected_cases(&loaded.file, &args.only)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let trace_dir = args.out.join("traces");
+    if args.traces {
+        std::fs::create_dir_all(&trace_dir)
+            .with_context(|| format!("cannot create {}", trace_dir.display()))?;
+    }
+    let started = std::time::Instant::now();
+    let rows = matrix(
+        &loaded,
+        &all,
+        &settings,
+        args.traces.then_some(trace_dir.as_path()),
+    )?;
+    let csv = args.out.join("robustness.csv");
+    write_csv(&csv, &rows)?;
+    let transient_csv = args.out.join("transient.csv");
+    write_transient_csv(&transient_csv, &rows)?;
+    crate::plot::register_font()?;
+    let pictures = plot(&args.out.join("robustness"), &rows)?;
+    println!(
+        "robustness matrix: {:?} inverse, feedback {:?} (gains x{}), errors over [{}, {}] s, {:.1} s",
+        settings.kind,
+        settings.feedback.structure,
+        args.gain_scale,
+        args.settle_s,
+        args.duration_s,
+        started.elapsed().as_secs_f64()
+    );
+    print!("{}", table(&rows));
+    print!("{}", transient_table(&rows, args.settle_s));
+    print!(
+        "{}",
+        table(&reference_row(&loaded, &settings)?)
+            .lines()
+            .nth(1)
+            .unwrap_or_default()
+    );
+    println!();
+    println!("wrote {}", csv.display());
+    println!("wrote {}", transient_csv.display());
+    for p in pictures {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+/// The controller and the run from the options: the file's feedback with the options' gains
+/// and structure (an error when it is off: nothing to compare), the inverse, the times, the seed.
+fn settings(args: &Args, file: &ActuatorParameters) -> Result<Settings> {
     if !(args.gain_scale.is_finite() && args.gain_scale >= 0.0) {
         bail!("--gain-scale must be >= 0, got {}", args.gain_scale);
     }
     let structure = args.structure.as_deref().map(parse_structure).transpose()?;
-    let mut params = loaded.params;
+    let mut params = *file;
     if let Some(k) = args.proportional_gain {
         params.control.feedback.proportional_gain = k;
     }
@@ -238,59 +290,38 @@ pub fn run(args: &Args) -> Result<()> {
             "the feedback is off (control.feedback.structure or --structure): nothing to compare"
         );
     }
-    let mut all = cases(&loaded.file)?;
-    if !args.only.is_empty() {
-        all.retain(|c| args.only.iter().any(|o| c.name.contains(o.as_str())));
-        if all.is_empty() {
-            bail!("--only {:?} matches no case", args.only);
-        }
-    }
-    let kind = if args.static_inverse {
-        InverseKind::Static
-    } else {
-        InverseKind::Dynamic
-    };
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let trace_dir = args.out.join("traces");
-    if args.traces {
-        std::fs::create_dir_all(&trace_dir)
-            .with_context(|| format!("cannot create {}", trace_dir.display()))?;
-    }
-    let started = std::time::Instant::now();
-    let settings = Settings {
+    Ok(Settings {
         feedback,
-        kind,
+        kind: if args.static_inverse {
+            InverseKind::Static
+        } else {
+            InverseKind::Dynamic
+        },
         stroke_gain: !args.no_stroke_gain,
         duration_s: args.duration_s,
         settle_s: args.settle_s,
         seed: args.seed,
-    };
-    let rows = matrix(
-        &loaded,
-        &all,
-        &settings,
-        args.traces.then_some(trace_dir.as_path()),
-    )?;
-    let csv = args.out.join("robustness.csv");
-    write_csv(&csv, &rows)?;
-    let transient_csv = args.out.join("transient.csv");
-    write_transient_csv(&transient_csv, &rows)?;
-    crate::plot::register_font()?;
-    let pictures = plot(&args.out.join("robustness"), &rows)?;
-    println!(
-        "robustness matrix: {:?} inverse, feedback {:?} (gains x{}), errors over [{}, {}] s, {:.1} s",
-        kind,
-        feedback.structure,
-        args.gain_scale,
-        args.settle_s,
-        args.duration_s,
-        started.elapsed().as_secs_f64()
-    );
-    print!("{}", table(&rows));
-    print!("{}", transient_table(&rows, args.settle_s));
-    let reference = matrix(
-        &loaded,
+    })
+}
+
+/// The matrix's cases on the `nominal` file, those whose name contains one of `only` when it is
+/// given (an error when none does).
+fn selected_cases(nominal: &actuator_params::ActuatorParams, only: &[String]) -> Result<Vec<Case>> {
+    let mut all = cases(nominal)?;
+    if !only.is_empty() {
+        all.retain(|c| only.iter().any(|o| c.name.contains(o.as_str())));
+        if all.is_empty() {
+            bail!("--only {only:?} matches no case");
+        }
+    }
+    Ok(all)
+}
+
+/// The nominal plant under the same controller: what the loop does without model error (a
+/// reference printed under the table, not a row).
+fn reference_row(loaded: &LoadedParams, settings: &Settings) -> Result<Vec<Row>> {
+    matrix(
+        loaded,
         &[Case {
             name: "nominal plant (no model error; reference, not a row)".into(),
             plant: loaded.file.clone(),
@@ -298,15 +329,7 @@ pub fn run(args: &Args) -> Result<()> {
             noise_m: BASE_NOISE_M,
             controller_sample_delay_s: None,
         }],
-        &settings,
+        settings,
         None,
-    )?;
-    print!("{}", table(&reference).lines().nth(1).unwrap_or_default());
-    println!();
-    println!("wrote {}", csv.display());
-    println!("wrote {}", transient_csv.display());
-    for p in pictures {
-        println!("wrote {}", p.display());
-    }
-    Ok(())
+    )
 }
