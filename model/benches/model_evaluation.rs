@@ -5,7 +5,8 @@
 //! One experiment: a biased 300 Hz sine at 10 kHz, 3,000 samples (the fit's cap per experiment,
 //! `FitSettings::max_fit_samples`), from the demagnetized state, the current linear between
 //! samples, one substep per sample (the diagnosis's setting). One evaluation per candidate form:
-//! the nominal model and each library effect at a typical magnitude. The ΔE form integrates the
+//! the nominal model and each library effect at a typical magnitude; the amplifier twice, without
+//! and with the coil's time constant (the loop's EMF path). The ΔE form integrates the
 //! rod step by step (its stiffness depends on the state); every other form steps the rod and
 //! load as a precomputed linear map.
 //!
@@ -54,6 +55,16 @@ fn bench(c: &mut Criterion) {
             "amplifier_bandwidth",
             Electro {
                 amplifier: Some((800.0, 0.7, 0.0)),
+                ..electro
+            },
+            mech,
+        ),
+        (
+            // The current loop around a 0.5 ms coil: the flux EMF it does not reject is stepped
+            // too (the `EMF` path of `electro_steps`).
+            "amplifier_bandwidth, coil 0.5 ms",
+            Electro {
+                amplifier: Some((800.0, 0.7, 5e-4)),
                 ..electro
             },
             mech,
