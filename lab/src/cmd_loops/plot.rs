@@ -23,9 +23,9 @@ pub(super) fn plot(
     out: &std::path::Path,
 ) -> Result<Vec<PathBuf>> {
     let act = &loaded.params.actuator;
-    let rod = Rod {
-        m_s: f64::from(act.saturation_magnetization_a_per_m),
-        c0: f64::from(act.coil_factor_per_m),
+    let scales = Scales {
+        saturation_a_per_m: f64::from(act.saturation_magnetization_a_per_m),
+        coil_factor_per_m: f64::from(act.coil_factor_per_m),
         stroke_um: f64::from(act.stroke_m()) * 1e6,
     };
     let source = loaded
@@ -37,13 +37,13 @@ pub(super) fn plot(
     let curves = curves(set);
     let h_range_a_per_m = (set.major.h_lo_a_per_m, set.major.h_hi_a_per_m);
     let mut files = one_panel(
-        magnetization_panel(&curves, &rod, h_range_a_per_m, &source),
+        magnetization_panel(&curves, &scales, h_range_a_per_m, &source),
         &out.join("loops"),
     )
     .context("writing the M-H plot")?;
     files.extend(
         one_panel(
-            displacement_panel(&curves, &rod, h_range_a_per_m, &source),
+            displacement_panel(&curves, &scales, h_range_a_per_m, &source),
             &out.join("displacement"),
         )
         .context("writing the displacement plot")?,
@@ -51,10 +51,10 @@ pub(super) fn plot(
     Ok(files)
 }
 
-/// The constants the figures scale by: `M_s` (A/m), the coil factor `c0` (1/m), the stroke (µm).
-struct Rod {
-    m_s: f64,
-    c0: f64,
+/// The rod's constants the figures scale by.
+struct Scales {
+    saturation_a_per_m: f64,
+    coil_factor_per_m: f64,
     stroke_um: f64,
 }
 
@@ -88,7 +88,7 @@ fn curves(set: &LoopSet) -> Vec<Curve> {
 /// `M` against `H`, kA/m, with `±M_s` over the major loop's field range `(lo, hi)`, A/m.
 fn magnetization_panel(
     curves: &[Curve],
-    rod: &Rod,
+    scales: &Scales,
     (h_lo_a_per_m, h_hi_a_per_m): (f64, f64),
     source: &str,
 ) -> Panel {
@@ -101,7 +101,10 @@ fn magnetization_panel(
     for (sign, label) in [(1.0, Some("±M_s".to_string())), (-1.0, None)] {
         mh.series.push(Series {
             label,
-            points: vec![(h_lo, sign * rod.m_s / 1e3), (h_hi, sign * rod.m_s / 1e3)],
+            points: vec![
+                (h_lo, sign * scales.saturation_a_per_m / 1e3),
+                (h_hi, sign * scales.saturation_a_per_m / 1e3),
+            ],
             color: PALETTE[7],
             width: 1,
         });
@@ -121,7 +124,7 @@ fn magnetization_panel(
 /// over the major loop's field range `(lo, hi)`, A/m.
 fn displacement_panel(
     curves: &[Curve],
-    rod: &Rod,
+    scales: &Scales,
     (h_lo_a_per_m, h_hi_a_per_m): (f64, f64),
     source: &str,
 ) -> Panel {
@@ -134,8 +137,8 @@ fn displacement_panel(
     yi.series.push(Series {
         label: Some("stroke l_m λ_s".into()),
         points: vec![
-            (h_lo_a_per_m / rod.c0, rod.stroke_um),
-            (h_hi_a_per_m / rod.c0, rod.stroke_um),
+            (h_lo_a_per_m / scales.coil_factor_per_m, scales.stroke_um),
+            (h_hi_a_per_m / scales.coil_factor_per_m, scales.stroke_um),
         ],
         color: PALETTE[7],
         width: 1,
@@ -146,7 +149,12 @@ fn displacement_panel(
             points: c
                 .points
                 .iter()
-                .map(|&(h, m)| (h / rod.c0, rod.stroke_um * (m / rod.m_s).powi(2)))
+                .map(|&(h, m)| {
+                    (
+                        h / scales.coil_factor_per_m,
+                        scales.stroke_um * (m / scales.saturation_a_per_m).powi(2),
+                    )
+                })
                 .collect(),
             color: c.color,
             width: c.width,
