@@ -352,28 +352,15 @@ fn diagnose_at(
     };
     // Step 6: the refitted nominal model.
     let common_start = singles::common_start(&rec.nominal, rec.skew);
-    let refit = singles::refit_nominal(&fitter, &common_start);
-    progress(1);
-    let scorer = Scorer {
-        setup,
-        fitter: Some(&fitter),
-        plan_data: &plan_data,
-        dynamic: &rec.dynamic,
-        training: &rec.training,
-        held_out: &rec.held_out,
-        infos: &rec.infos,
-        noise_m: rec.noise_m,
-        none_threshold_m: none_threshold(rec.noise_m, rec.range_m),
-    };
-    let base = scorer.predict(&refit);
-    let refit_result = scorer.result(&refit, &base, &base);
-    let model_error_m = scorer.discretization_error(&refit, &base);
-    let gaps = Gaps::new(
-        refit_result.systematic_before_m,
+    let scorer = Scorer::of_recording(setup, &fitter, &plan_data, &rec);
+    let RefittedNominal {
+        fit: refit,
+        base,
+        result: refit_result,
         model_error_m,
-        rec.noise_m,
-        rec.range_m,
-    );
+        gaps,
+    } = refitted_nominal(&fitter, &scorer, &common_start, (rec.noise_m, rec.range_m));
+    progress(1);
     if may_refine && gaps.only_the_model_error_says_none() {
         // No need to fit the candidates at these substeps.
         return Ok(Attempt::Refine {
@@ -417,6 +404,43 @@ fn diagnose_at(
         unmeasured_loops,
     });
     Ok(Attempt::Done(Box::new(run)))
+}
+
+/// Step 6's refitted nominal model: the reference every candidate is scored against.
+struct RefittedNominal {
+    /// The fit (`R_eddy`, `ξ`, `f0` and the skew on the training experiments).
+    fit: PlanFit,
+    /// Its prediction.
+    base: scoring::Scored,
+    /// Its scores (against itself).
+    result: CandidateResult,
+    /// The model's own integration error at its parameters, m.
+    model_error_m: f64,
+    /// The gaps the rules compare with.
+    gaps: Gaps,
+}
+
+/// Step 6: the nominal model refitted from `common_start` on the training experiments, scored
+/// on the held-out ones, with the model's integration error there and the gaps, for a recording
+/// of noise level and motion `(noise_m, range_m)`.
+fn refitted_nominal(
+    fitter: &PlanFitter<'_>,
+    scorer: &Scorer<'_>,
+    common_start: &[f64],
+    (noise_m, range_m): (f64, f64),
+) -> RefittedNominal {
+    let fit = singles::refit_nominal(fitter, common_start);
+    let base = scorer.predict(&fit);
+    let result = scorer.result(&fit, &base, &base);
+    let model_error_m = scorer.discretization_error(&fit, &base);
+    let gaps = Gaps::new(result.systematic_before_m, model_error_m, noise_m, range_m);
+    RefittedNominal {
+        fit,
+        base,
+        result,
+        model_error_m,
+        gaps,
+    }
 }
 
 /// What the candidate steps give the verdict.

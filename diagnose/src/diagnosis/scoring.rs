@@ -2,10 +2,11 @@
 //! its predictions, its systematic gap before and after, the knock-out test of significance,
 //! the per-band errors, and the order of the fits with ties broken.
 
+use super::recording::Recording;
 use super::report::{BandError, CandidateResult, HeldOutTie, TiedFit};
 use super::rules::{
-    EQUAL_HELD_OUT, EXPLAINED_RATIO, MAX_WORSE_SHARE, NEEDED_FACTOR, WITHIN_NOISE_RATIO,
-    WORSE_NOISE_SHARE, WORSE_RMS_FACTOR,
+    none_threshold, EQUAL_HELD_OUT, EXPLAINED_RATIO, MAX_WORSE_SHARE, NEEDED_FACTOR,
+    WITHIN_NOISE_RATIO, WORSE_NOISE_SHARE, WORSE_RMS_FACTOR,
 };
 use maglab_model::experiments::ExperimentInfo;
 use maglab_model::fit::{ExperimentData, Fitted, ModelSetup};
@@ -115,6 +116,29 @@ pub struct Scorer<'a> {
     pub noise_m: f64,
     /// [`super::rules::none_threshold`] of the dataset, m.
     pub none_threshold_m: f64,
+}
+
+impl<'a> Scorer<'a> {
+    /// The scorer of a recording's experiments (`rec`, its start plans' views `plan_data`) in
+    /// the model `setup`, refitting knock-outs with `fitter`.
+    pub fn of_recording(
+        setup: ModelSetup<'a>,
+        fitter: &'a PlanFitter<'a>,
+        plan_data: &'a [Vec<ExperimentData<'a>>],
+        rec: &'a Recording,
+    ) -> Scorer<'a> {
+        Scorer {
+            setup,
+            fitter: Some(fitter),
+            plan_data,
+            dynamic: &rec.dynamic,
+            training: &rec.training,
+            held_out: &rec.held_out,
+            infos: &rec.infos,
+            noise_m: rec.noise_m,
+            none_threshold_m: none_threshold(rec.noise_m, rec.range_m),
+        }
+    }
 }
 
 impl Scorer<'_> {
