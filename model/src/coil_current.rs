@@ -202,45 +202,12 @@ pub fn judge(measurements: &[Measurement]) -> Option<AmplifierJudgement> {
         return None;
     }
     let n: usize = records.iter().map(|r| r.1.len()).sum();
-    let betweens = [CurrentBetweenSamples::Hold, CurrentBetweenSamples::Linear];
-    let better = |a: Fit, b: Fit| if b.sse < a.sse { b } else { a };
-    let identity = betweens
+    let identity = [CurrentBetweenSamples::Hold, CurrentBetweenSamples::Linear]
         .iter()
         .map(|&b| best_skew(&records, b, 0.0))
         .reduce(better)?;
-    let (lo, hi, count) = LAG_GRID;
-    let grid: Vec<f64> = (0..count)
-        .map(|k| lo * (hi / lo).powf(k as f64 / (count - 1) as f64))
-        .collect();
-    let mut lagged = identity;
-    let mut best_k = None;
-    for &b in &betweens {
-        for (k, &tau) in grid.iter().enumerate() {
-            let f = best_skew(&records, b, tau);
-            if f.sse < lagged.sse {
-                lagged = f;
-                best_k = Some(k);
-            }
-        }
-    }
-    if let Some(k) = best_k {
-        let (a, b) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
-        let between = lagged.between;
-        let ln_tau = golden_section_min(a.ln(), b.ln(), LAG_ITERATIONS, |ln_t| {
-            best_skew(&records, between, ln_t.exp()).sse
-        });
-        lagged = better(lagged, best_skew(&records, between, ln_tau.exp()));
-    }
-    // The monitor's noise: the white level of model 1's residual above 0.3 f_s, median over
-    // experiments.
-    let mut sigmas: Vec<f64> = records
-        .iter()
-        .map(|(command, measured, step_s)| {
-            white_noise_sigma(&residual(command, measured, *step_s, &lagged))
-        })
-        .collect();
-    sigmas.sort_by(f64::total_cmp);
-    let noise_a = sigmas[sigmas.len() / 2];
+    let lagged = best_lag(&records, identity);
+    let noise_a = monitor_noise_a(&records, &lagged);
     let (min, max) = records
         .iter()
         .flat_map(|r| r.1.iter())
@@ -255,34 +222,9 @@ pub fn judge(measurements: &[Measurement]) -> Option<AmplifierJudgement> {
         n as f64 * (identity.sse.max(f64::MIN_POSITIVE) / lagged.sse.max(f64::MIN_POSITIVE)).ln();
     let significant = likelihood_ratio > CHI2_1_QUANTILE;
     let matters = systematic_a >= PRACTICAL_SHARE * range_a;
-    let amplifier_named = significant && matters;
-    let reason = if amplifier_named {
-        format!(
-            "the measured coil current departs from the command by {systematic_a:.3e} A RMS \
-             beyond the monitor's noise ({noise_a:.2e} A; {:.2} % of the current's range), \
-             significant at a false-alarm rate of {FALSE_ALARM} (likelihood ratio {likelihood_ratio:.1} \
-             > {CHI2_1_QUANTILE}); as a first-order lag, {:.1} µs ({:.0} Hz)",
-            100.0 * systematic_a / range_a.max(f64::MIN_POSITIVE),
-            1e6 * lagged.tau_s,
-            1.0 / (2.0 * std::f64::consts::PI * lagged.tau_s.max(f64::MIN_POSITIVE))
-        )
-    } else if significant {
-        format!(
-            "the measured coil current follows the command to {systematic_a:.3e} A RMS, below \
-             {:.1} % of its range (a detectable but immaterial amplifier lag, {:.1} µs)",
-            100.0 * PRACTICAL_SHARE,
-            1e6 * lagged.tau_s
-        )
-    } else {
-        format!(
-            "the measured coil current follows the command within the monitor's noise \
-             ({noise_a:.2e} A; likelihood ratio of a lag {likelihood_ratio:.1} <= \
-             {CHI2_1_QUANTILE}): the amplifier is ruled out"
-        )
-    };
-    Some(AmplifierJudgement {
-        amplifier_named,
-        reason,
+    let mut judgement = AmplifierJudgement {
+        amplifier_named: significant && matters,
+        reason: String::new(),
         noise_a,
         systematic_a,
         range_a,
@@ -291,7 +233,100 @@ pub fn judge(measurements: &[Measurement]) -> Option<AmplifierJudgement> {
         lag_time_constant_s: lagged.tau_s,
         skew_samples: lagged.skew,
         current_between_samples: lagged.between.name().to_string(),
-    })
+    };
+    judgement.reason = judgement.reason_text(significant);
+    Some(judgement)
+}
+
+/// The fit of lower residual energy.
+fn better(a: Fit, b: Fit) -> Fit {
+    if b.sse < a.sse {
+        b
+    } else {
+        a
+    }
+}
+
+/// The best first-order lag (model 1): the grid [`LAG_GRID`] under both interpolations, then a
+/// golden-section search between the best point's neighbours; `identity` (model 0) when no lag
+/// does better.
+fn best_lag(records: &[(&[f64], &[f64], f64)], identity: Fit) -> Fit {
+    let (lo, hi, count) = LAG_GRID;
+    let grid: Vec<f64> = (0..count)
+        .map(|k| lo * (hi / lo).powf(k as f64 / (count - 1) as f64))
+        .collect();
+    let mut lagged = identity;
+    let mut best_k = None;
+    for b in [CurrentBetweenSamples::Hold, CurrentBetweenSamples::Linear] {
+        for (k, &tau) in grid.iter().enumerate() {
+            let f = best_skew(records, b, tau);
+            if f.sse < lagged.sse {
+                lagged = f;
+                best_k = Some(k);
+            }
+        }
+    }
+    if let Some(k) = best_k {
+        let (a, b) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
+        let between = lagged.between;
+        let ln_tau = golden_section_min(a.ln(), b.ln(), LAG_ITERATIONS, |ln_t| {
+            best_skew(records, between, ln_t.exp()).sse
+        });
+        lagged = better(lagged, best_skew(records, between, ln_tau.exp()));
+    }
+    lagged
+}
+
+/// The monitor's noise: the white level of model 1's residual above 0.3 f_s, median over
+/// experiments, A.
+fn monitor_noise_a(records: &[(&[f64], &[f64], f64)], lagged: &Fit) -> f64 {
+    let mut sigmas: Vec<f64> = records
+        .iter()
+        .map(|(command, measured, step_s)| {
+            white_noise_sigma(&residual(command, measured, *step_s, lagged))
+        })
+        .collect();
+    sigmas.sort_by(f64::total_cmp);
+    sigmas[sigmas.len() / 2]
+}
+
+impl AmplifierJudgement {
+    /// Why the amplifier is named, immaterial or ruled out (`significant`: the lag's likelihood
+    /// ratio passes its threshold).
+    fn reason_text(&self, significant: bool) -> String {
+        let AmplifierJudgement {
+            noise_a,
+            systematic_a,
+            range_a,
+            likelihood_ratio,
+            lag_time_constant_s,
+            ..
+        } = *self;
+        if self.amplifier_named {
+            format!(
+                "the measured coil current departs from the command by {systematic_a:.3e} A RMS \
+                 beyond the monitor's noise ({noise_a:.2e} A; {:.2} % of the current's range), \
+                 significant at a false-alarm rate of {FALSE_ALARM} (likelihood ratio {likelihood_ratio:.1} \
+                 > {CHI2_1_QUANTILE}); as a first-order lag, {:.1} µs ({:.0} Hz)",
+                100.0 * systematic_a / range_a.max(f64::MIN_POSITIVE),
+                1e6 * lag_time_constant_s,
+                1.0 / (2.0 * std::f64::consts::PI * lag_time_constant_s.max(f64::MIN_POSITIVE))
+            )
+        } else if significant {
+            format!(
+                "the measured coil current follows the command to {systematic_a:.3e} A RMS, below \
+                 {:.1} % of its range (a detectable but immaterial amplifier lag, {:.1} µs)",
+                100.0 * PRACTICAL_SHARE,
+                1e6 * lag_time_constant_s
+            )
+        } else {
+            format!(
+                "the measured coil current follows the command within the monitor's noise \
+                 ({noise_a:.2e} A; likelihood ratio of a lag {likelihood_ratio:.1} <= \
+                 {CHI2_1_QUANTILE}): the amplifier is ruled out"
+            )
+        }
+    }
 }
 
 /// `measurements` with the measured coil current as the current of every record: the records the

@@ -651,49 +651,111 @@ pub fn fit(
         .iter()
         .map(|&k| (data[k].settle + settings.max_fit_samples).min(data[k].current_a.len()))
         .collect();
-    let evaluations = Arc::new(AtomicU64::new(0));
-    let cache: Arc<Cache> = Arc::new(Recent::new(3));
-    let tracks: Arc<TrackCache> = Arc::new(Recent::new(2));
-    let make_with = |head: Vec<f64>, z: DVector<f64>| Problem {
+    let origin = Problem {
         setup,
         data,
         training,
-        lengths: lengths.clone(),
+        lengths,
         candidate,
-        specs: specs.clone(),
-        cache: cache.clone(),
-        tracks: tracks.clone(),
-        evaluations: evaluations.clone(),
-        head,
-        z,
+        specs,
+        cache: Arc::new(Recent::new(3)),
+        tracks: Arc::new(Recent::new(2)),
+        evaluations: Arc::new(AtomicU64::new(0)),
+        head: Vec::new(),
+        z: DVector::zeros(0),
         residuals: None,
     };
-    let make = |z: DVector<f64>| make_with(Vec::new(), z);
-    let to_z = |v: &[f64]| {
-        DVector::from_iterator(
-            specs.len(),
-            specs.iter().zip(v).map(|(s, &v)| s.start_coordinate(v)),
-        )
-    };
-    // Evaluate the starts; refine the best (and the second when within 10 % of it: a second
-    // basin as good).
-    let mut scored: Vec<(f64, DVector<f64>)> = starts
-        .iter()
-        .map(|v| {
-            let z = to_z(v);
-            let p = make(z.clone());
-            let cost = p.eval(&z).map_or(f64::INFINITY, |r| r.norm_squared());
-            (cost, z)
-        })
-        .collect();
-    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let scored = origin.score_starts(starts);
+    // Refine the best start (and the second when within 10 % of it: a second basin as good).
     let refine = if scored.len() > 1 && scored[1].0 <= 1.1 * scored[0].0 {
         2
     } else {
         1
     };
-    let mut results: Vec<(f64, DVector<f64>)> = Vec::new();
-    let minimize = |p: Problem<'_>| {
+    let two_phase = two_phase && !candidate.effects.is_empty();
+    let results: Vec<(f64, DVector<f64>)> = scored
+        .iter()
+        .take(refine)
+        .flat_map(|(_, z0)| origin.refine_from(z0, settings, two_phase))
+        .collect();
+    let best = origin
+        .least_pinned_best(results)
+        .unwrap_or_else(|| scored[0].clone());
+    origin.fitted(&best)
+}
+
+impl<'a> Problem<'a> {
+    /// The same problem at another point, sharing the caches and the count of evaluations:
+    /// the coordinates `head` held fixed and `z` free.
+    fn at(&self, head: Vec<f64>, z: DVector<f64>) -> Problem<'a> {
+        Problem {
+            setup: self.setup,
+            data: self.data,
+            training: self.training,
+            lengths: self.lengths.clone(),
+            candidate: self.candidate,
+            specs: self.specs.clone(),
+            cache: self.cache.clone(),
+            tracks: self.tracks.clone(),
+            evaluations: self.evaluations.clone(),
+            head,
+            z,
+            residuals: None,
+        }
+    }
+
+    /// Each start's cost and coordinates, the lowest cost first (a start the model cannot run
+    /// costs infinity).
+    fn score_starts(&self, starts: &[Vec<f64>]) -> Vec<(f64, DVector<f64>)> {
+        let mut scored: Vec<(f64, DVector<f64>)> = starts
+            .iter()
+            .map(|v| {
+                let z = DVector::from_iterator(
+                    self.specs.len(),
+                    self.specs
+                        .iter()
+                        .zip(v)
+                        .map(|(s, &v)| s.start_coordinate(v)),
+                );
+                let cost = self
+                    .at(Vec::new(), z.clone())
+                    .eval(&z)
+                    .map_or(f64::INFINITY, |r| r.norm_squared());
+                (cost, z)
+            })
+            .collect();
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+        scored
+    }
+
+    /// The optima reached from `z0`: everything free; with `two_phase` also the effect's own
+    /// parameters first, with the shared constants held at the start's (the parameter file's or
+    /// the refitted ones), then everything from there. Freed at once, the constants move first
+    /// (their gradients are the strongest) to mimic the effect, and the fit stays in that valley.
+    fn refine_from(
+        &self,
+        z0: &DVector<f64>,
+        settings: &FitSettings,
+        two_phase: bool,
+    ) -> Vec<(f64, DVector<f64>)> {
+        let mut results = vec![self.minimize(self.at(Vec::new(), z0.clone()), settings)];
+        if two_phase {
+            let head: Vec<f64> = z0.iter().take(COMMON_PARAMETER_COUNT).copied().collect();
+            let tail = DVector::from_iterator(
+                z0.len() - COMMON_PARAMETER_COUNT,
+                z0.iter().skip(COMMON_PARAMETER_COUNT).copied(),
+            );
+            let (_, z1) = self.minimize(self.at(head, tail), settings);
+            results.push(self.minimize(self.at(Vec::new(), z1), settings));
+        }
+        results
+    }
+
+    /// Levenberg-Marquardt from `p`'s point: the cost and the whole coordinates it ends at (the
+    /// held ones first).
+    fn minimize(&self, mut p: Problem<'a>, settings: &FitSettings) -> (f64, DVector<f64>) {
+        let z = p.z.clone();
+        p.set_params(&z);
         let (p, report) = LevenbergMarquardt::new()
             .with_patience(settings.patience)
             .with_ftol(1e-8)
@@ -703,7 +765,7 @@ pub fn fit(
         if std::env::var_os("MAGLAB_DEBUG_FIT").is_some() {
             eprintln!(
                 "fit {} ({} fixed): {:?} after {} evaluations, cost -> {:.3e}",
-                candidate.name(),
+                self.candidate.name(),
                 p.head.len(),
                 report.termination,
                 report.number_of_evaluations,
@@ -716,55 +778,46 @@ pub fn fit(
             p.head.iter().copied().chain(p.z.iter().copied()),
         );
         (cost, z)
-    };
-    let two_phase = two_phase && !candidate.effects.is_empty();
-    for (_, z0) in scored.iter().take(refine) {
-        let mut p = make(z0.clone());
-        p.set_params(z0);
-        results.push(minimize(p));
-        if two_phase {
-            // The effect's own parameters first, with the shared constants held at the start's
-            // (the parameter file's or the refitted ones): freed at once, the constants move
-            // first (their gradients are the strongest) to mimic the effect, and the fit stays
-            // in that valley. Then everything from there.
-            let head: Vec<f64> = z0.iter().take(COMMON_PARAMETER_COUNT).copied().collect();
-            let tail = DVector::from_iterator(
-                z0.len() - COMMON_PARAMETER_COUNT,
-                z0.iter().skip(COMMON_PARAMETER_COUNT).copied(),
-            );
-            let mut p = make_with(head, tail.clone());
-            p.set_params(&tail);
-            let (_, z1) = minimize(p);
-            let mut p = make(z1.clone());
-            p.set_params(&z1);
-            results.push(minimize(p));
+    }
+
+    /// The lowest cost, unless it pins an effect parameter at a physical limit and a result that
+    /// pins none comes within 10 % of it: the pinned optimum would disqualify the candidate
+    /// (an implausible effect) for a gain in cost the data do not resolve.
+    fn least_pinned_best(
+        &self,
+        mut results: Vec<(f64, DVector<f64>)>,
+    ) -> Option<(f64, DVector<f64>)> {
+        let pins = |z: &DVector<f64>| self.specs.iter().zip(z.iter()).any(|(s, &v)| s.pinned(v));
+        results.sort_by(|a, b| a.0.total_cmp(&b.0));
+        match (results.first(), results.iter().find(|r| !pins(&r.1))) {
+            (Some(lowest), Some(free)) if pins(&lowest.1) && free.0 <= 1.1 * lowest.0 => {
+                Some(free.clone())
+            }
+            (Some(lowest), _) => Some(lowest.clone()),
+            (None, _) => None,
         }
     }
-    // The lowest cost, unless it pins an effect parameter at a physical limit and a result that
-    // pins none comes within 10 % of it: the pinned optimum would disqualify the candidate
-    // (an implausible effect) for a gain in cost the data do not resolve.
-    let pins = |z: &DVector<f64>| specs.iter().zip(z.iter()).any(|(s, &v)| s.pinned(v));
-    results.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let best = match (results.first(), results.iter().find(|r| !pins(&r.1))) {
-        (Some(lowest), Some(free)) if pins(&lowest.1) && free.0 <= 1.1 * lowest.0 => free.clone(),
-        (Some(lowest), _) => lowest.clone(),
-        (None, _) => scored[0].clone(),
-    };
-    let n_res: usize = training
-        .iter()
-        .zip(&lengths)
-        .map(|(&k, &len)| len.saturating_sub(data[k].settle))
-        .sum();
-    let values: Vec<f64> = specs
-        .iter()
-        .zip(best.1.iter())
-        .map(|(s, &z)| s.value(z))
-        .collect();
-    Fitted {
-        candidate: candidate.clone(),
-        specs,
-        values,
-        training_rms_m: (best.0 / n_res.max(1) as f64).sqrt(),
-        evaluations: evaluations.load(Ordering::Relaxed),
+
+    /// The fitted candidate at `(cost, z)`: its values and training RMS per sample.
+    fn fitted(self, best: &(f64, DVector<f64>)) -> Fitted {
+        let n_res: usize = self
+            .training
+            .iter()
+            .zip(&self.lengths)
+            .map(|(&k, &len)| len.saturating_sub(self.data[k].settle))
+            .sum();
+        let values: Vec<f64> = self
+            .specs
+            .iter()
+            .zip(best.1.iter())
+            .map(|(s, &z)| s.value(z))
+            .collect();
+        Fitted {
+            candidate: self.candidate.clone(),
+            specs: self.specs,
+            values,
+            training_rms_m: (best.0 / n_res.max(1) as f64).sqrt(),
+            evaluations: self.evaluations.load(Ordering::Relaxed),
+        }
     }
 }

@@ -344,7 +344,8 @@ fn electro_once(
 ) -> (Vec<f64>, Vec<f64>, Memory) {
     // The second eddy path is a compile-time switch: as a run-time one it cost the substep loop
     // of every other model about 18 % of a diagnosis' time (measured on the blind suite).
-    // So is the current loop's EMF term (an amplifier with `τ_L > 0`).
+    // So is the current loop's EMF term (an amplifier with `τ_L > 0`; at `τ_L = 0` the loop only
+    // filters the command).
     let emf = matches!(e.amplifier, Some((_, _, tau_l)) if tau_l > 0.0);
     let run = match (e.second_eddy_path.is_some(), emf) {
         (false, false) => electro_steps::<false, false>,
@@ -355,8 +356,59 @@ fn electro_once(
     run(setup, e, drive, s)
 }
 
+/// The eddy step's constants for substeps of `δ` (module docs): the implicit side's drive
+/// `δ/(κ Z_hf + Z_loop)` (`Z_loop` the current loop's EMF impedance) and each extra path's
+/// `(τ, ΔZ)` with the share `τ/(τ + δ)` of its state a substep keeps.
+struct EddyStep {
+    drive: f64,
+    paths: [Option<(f64, f64)>; 2],
+    keeps: [f64; 2],
+}
+
+impl EddyStep {
+    fn new(nominal: &Nominal, e: &Electro, loop_impedance: f64, delta: f64) -> Self {
+        let z_dc = nominal.mu0_n_a / e.eddy_resistance_ohm.max(1e-9);
+        let (z_hf, paths) = eddy_paths(z_dc, e.eddy_path, e.second_eddy_path);
+        let kappa = match paths {
+            [Some((tau, dz)), None] => (tau * z_hf + delta * (z_hf + dz)) / ((tau + delta) * z_hf),
+            _ => {
+                1.0 + paths
+                    .iter()
+                    .flatten()
+                    .map(|(tau, dz)| delta * dz / ((tau + delta) * z_hf))
+                    .sum::<f64>()
+            }
+        };
+        let keep = |p: Option<(f64, f64)>| p.map_or(0.0, |(tau, _)| tau / (tau + delta));
+        EddyStep {
+            drive: delta / (kappa * z_hf + loop_impedance),
+            paths,
+            keeps: [keep(paths[0]), keep(paths[1])],
+        }
+    }
+}
+
+/// The coil current over one substep with the command going linearly from `u0` to `u1`: through
+/// the current loop's command response when there is an amplifier (advancing its state `x`),
+/// the command itself otherwise. Returns its mean and mean square over the substep (exact for
+/// a current linear over it).
+fn coil_current(amplifier: Option<&CurrentLoop>, x: &mut [f64; 2], u0: f64, u1: f64) -> (f64, f64) {
+    let (before, after) = match amplifier {
+        Some(l) => {
+            let before = l.output(*x);
+            *x = l.advance(*x, u0, u1);
+            (before, l.output(*x))
+        }
+        None => (u0, u1),
+    };
+    (
+        0.5 * (before + after),
+        (before * before + before * after + after * after) / 3.0,
+    )
+}
+
 /// [`electro_once`] with or without the second eddy path's state and the current loop's EMF
-/// term ([`CurrentLoop`]).
+/// term ([`CurrentLoop`]; `EMF` only when `τ_L > 0`, where the term is not zero).
 fn electro_steps<const SECOND_PATH: bool, const EMF: bool>(
     setup: &ModelSetup<'_>,
     e: &Electro,
@@ -378,35 +430,15 @@ fn electro_steps<const SECOND_PATH: bool, const EMF: bool>(
     let n = currents_a.len();
     let delta = step_s / s as f64;
     let c0 = nominal.c0_per_m;
-    let z_dc = nominal.mu0_n_a / e.eddy_resistance_ohm.max(1e-9);
-    // Eddy impedance: Z_hf and the extra paths (module docs).
-    let (z_hf, paths) = eddy_paths(z_dc, e.eddy_path, e.second_eddy_path);
-    let kappa = match paths {
-        [Some((tau, dz)), None] => (tau * z_hf + delta * (z_hf + dz)) / ((tau + delta) * z_hf),
-        _ => {
-            1.0 + paths
-                .iter()
-                .flatten()
-                .map(|(tau, dz)| delta * dz / ((tau + delta) * z_hf))
-                .sum::<f64>()
-        }
+    // The amplifier: its command response `T` and, with `EMF`, its EMF filter ([`CurrentLoop`]).
+    let amplifier = e
+        .amplifier
+        .map(|(f, zeta, tau_l)| CurrentLoop::new(f, zeta, tau_l, c0, delta));
+    let loop_impedance = match (EMF, &amplifier) {
+        (true, Some(l)) => l.implicit_impedance(),
+        _ => 0.0,
     };
-    // The current loop with an EMF term (`EMF`): its command response `T` and its EMF filter
-    // ([`CurrentLoop`]); without one, an amplifier is the exact discretization of
-    // i'' = ω²(c − i) − 2ζω i' for c linear over a substep.
-    let current_loop = match e.amplifier {
-        Some((f, zeta, tau_l)) if EMF => Some(CurrentLoop::new(f, zeta, tau_l, c0, delta)),
-        _ => None,
-    };
-    let emf_impedance = current_loop.map_or(0.0, |l| l.implicit_impedance());
-    let drive = delta / (kappa * z_hf + emf_impedance);
-    let [path, second_path] = paths;
-    let keep = |p: Option<(f64, f64)>| p.map_or(0.0, |(tau, _)| tau / (tau + delta));
-    let (q_keep, second_q_keep) = (keep(path), keep(second_path));
-    let amp = match e.amplifier {
-        Some((f, zeta, _)) if !EMF => Some(second_order(2.0 * PI * f, zeta, delta)),
-        _ => None,
-    };
+    let eddy = EddyStep::new(nominal, e, loop_impedance, delta);
     let mut memory = start_memory(nominal, measure, start, previous);
     let first = currents_a[0];
     let (i_start, h0) = match start {
@@ -422,10 +454,7 @@ fn electro_steps<const SECOND_PATH: bool, const EMF: bool>(
     let mut rev_at_h = reversible(e.reversible, h);
     let mut m = g0 + rev_at_h.0;
     let (mut q, mut second_q) = (0.0f64, 0.0f64);
-    let mut amp_state = match &current_loop {
-        Some(l) => l.rest(i_start),
-        None => [i_start, 0.0f64],
-    };
+    let mut amp_state = amplifier.map_or([0.0; 2], |l| l.rest(i_start));
     let mut emf_state = [0.0f64; 2];
     let mut m_out = Vec::with_capacity(1 + n * s);
     let mut i2_out = Vec::with_capacity(n * s);
@@ -440,58 +469,36 @@ fn electro_steps<const SECOND_PATH: bool, const EMF: bool>(
             let fa = j as f64 / s as f64;
             let fb = (j + 1) as f64 / s as f64;
             let (u0, u1) = (c_a + (c_b - c_a) * fa, c_a + (c_b - c_a) * fb);
-            // Coil current: its mean and mean square over the substep.
-            let (i_mean, i2) = match (&amp, &current_loop) {
-                (_, Some(l)) => {
-                    let before = l.output(amp_state);
-                    amp_state = l.advance(amp_state, u0, u1);
-                    let after = l.output(amp_state);
-                    (
-                        0.5 * (before + after),
-                        (before * before + before * after + after * after) / 3.0,
-                    )
-                }
-                (Some(a), None) => {
-                    let before = amp_state[0];
-                    amp_state = a.step(amp_state, u0, u1);
-                    let mean = 0.5 * (before + amp_state[0]);
-                    (
-                        mean,
-                        (before * before + before * amp_state[0] + amp_state[0] * amp_state[0])
-                            / 3.0,
-                    )
-                }
-                (None, None) => ((u0 + u1) * 0.5, (u0 * u0 + u0 * u1 + u1 * u1) / 3.0),
-            };
+            let (i_mean, i2) = coil_current(amplifier.as_ref(), &mut amp_state, u0, u1);
             let (mrev, chi) = rev_at_h;
             // w_rev = (1 + χ) H + Γ(H) with the reversible part linearized at H.
             let gamma = m - mrev;
-            let eddy = if SECOND_PATH {
-                q_keep * q + second_q_keep * second_q
+            let eddy_current = if SECOND_PATH {
+                eddy.keeps[0] * q + eddy.keeps[1] * second_q
             } else {
-                q_keep * q
+                eddy.keeps[0] * q
             };
-            let loop_current = match (EMF, &current_loop) {
+            let loop_current = match (EMF, &amplifier) {
                 (true, Some(l)) => l.explicit_current(emf_state),
                 _ => 0.0,
             };
-            let rhs = (1.0 + chi) * h + gamma + drive * (i_mean - eddy + loop_current);
-            let slope = (1.0 + chi + drive / c0) as f32;
+            let rhs = (1.0 + chi) * h + gamma + eddy.drive * (i_mean - eddy_current + loop_current);
+            let slope = (1.0 + chi + eddy.drive / c0) as f32;
             let (h_new, g_new) = match measure.solve(&mut memory, slope, rhs as f32) {
                 Ok(sol) => (sol.h_a_per_m as f64, sol.m_a_per_m as f64),
                 Err(_) => (h, gamma),
             };
             rev_at_h = reversible(e.reversible, h_new);
             let w_change = (h_new - h) + (g_new - gamma) + (rev_at_h.0 - mrev);
-            if let Some((tau, dz)) = path {
+            if let Some((tau, dz)) = eddy.paths[0] {
                 q = (tau * q + dz * w_change) / (tau + delta);
             }
-            if let (true, Some((tau, dz))) = (SECOND_PATH, second_path) {
+            if let (true, Some((tau, dz))) = (SECOND_PATH, eddy.paths[1]) {
                 second_q = (tau * second_q + dz * w_change) / (tau + delta);
             }
             // The EMF current the loop leaves, constant over the substep (backward Euler):
             // `E[(i − g)²] = E[i²] − 2 g E[i] + g²`.
-            let i2 = match (EMF, &current_loop) {
+            let i2 = match (EMF, &amplifier) {
                 (true, Some(l)) => {
                     let w_rate = w_change / delta;
                     let g = l.emf_current(emf_state, w_rate);
@@ -601,7 +608,7 @@ impl<const N: usize> LinearStep<N> {
 }
 
 /// Exact discretization of `x'' = ω²(c − x) − 2ζω x'` (state `[x, x']`) over a step `δ` with
-/// `c` linear over it: the amplifier and the sensor low-pass.
+/// `c` linear over it: the sensor's low-pass.
 #[doc(hidden)] // public for tests/internals.rs only
 pub fn second_order(omega: f64, zeta: f64, delta: f64) -> LinearStep<2> {
     LinearStep::new(

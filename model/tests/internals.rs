@@ -653,7 +653,31 @@ mod model {
 
     #[test]
     fn a_current_loop_around_a_coil_without_inductance_is_the_second_order_low_pass() {
-        // τ_L → 0 takes the loop's EMF path (its own discretization of T) to the low-pass one.
+        // At τ_L = 0 the loop is T = ωn²/(s² + 2ζωn s + ωn²) in its own realization (output
+        // a₀ x₁): the same as the sensor's low-pass realization (state [y, y']) on a ramp and a
+        // step, to rounding.
+        let (omega, zeta, delta) = (2.0 * PI * 600.0, 0.8, 1e-5);
+        let l = CurrentLoop::new(600.0, 0.8, 0.0, 1.0e4, delta);
+        let lp = second_order(omega, zeta, delta);
+        let (mut x, mut y) = (l.rest(0.2), [0.2, 0.0]);
+        let mut worst = 0.0f64;
+        for k in 0..4000 {
+            let (c0, c1) = if k < 2000 {
+                (0.2 + k as f64 * 1e-4, 0.2 + (k + 1) as f64 * 1e-4)
+            } else {
+                (1.0, 1.0)
+            };
+            x = l.advance(x, c0, c1);
+            y = lp.step(y, c0, c1);
+            worst = worst.max((l.output(x) - y[0]).abs());
+        }
+        assert!(worst < 1e-12, "{worst:e}");
+        assert_eq!(l.implicit_impedance(), 0.0);
+    }
+
+    #[test]
+    fn a_current_loop_whose_coil_time_constant_vanishes_leaves_no_emf() {
+        // τ_L → 0 takes the run with the loop's EMF term to the run without it.
         let (nominal, measure) = paper_model();
         let run = |e: &Electro| on_a_sine(&nominal, &measure, StartState::NegativeSaturation, e);
         let mut low_pass = Electro::nominal(nominal.eddy_resistance_ohm);
@@ -663,11 +687,10 @@ mod model {
         let (a, b) = (run(&low_pass), run(&current_loop));
         let scale = a.m_a_per_m.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let worst = max_difference(&a.m_a_per_m, &b.m_a_per_m);
-        // The two discretizations of T differ in the last bits; the core's f32 solve rounds
-        // the difference to its own step (6e-8 relative) and carries it over the substeps.
+        // The EMF term is 1e-12/c0 of w': the core's f32 solve rounds what it moves to its
+        // own step (6e-8 relative) and carries that over the substeps.
         assert!(worst <= 1e-5 * scale, "{worst:e} of {scale:e}");
-        // The matrix exponentials of the two realizations (states scaled by ωn² apart) agree to
-        // about 1e-8 of the current's square.
+        // The mean square current the loop leaves agrees to about 1e-8 of the current's square.
         let i2_scale = a.current_sq_a2.iter().fold(0.0f64, |m, v| m.max(*v));
         let worst_i2 = max_difference(&a.current_sq_a2, &b.current_sq_a2);
         assert!(worst_i2 <= 1e-7 * i2_scale, "{worst_i2:e} of {i2_scale:e}");

@@ -84,6 +84,7 @@ pub fn analyse(
     options: &DiagnoseOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Recording, String> {
+    // ---- Step 1: the experiments and the constants the data give.
     let rate_hz = check_dataset(params, measurements, documented)?;
     let core = magctl::params::ActuatorParameters::from_file(params, "nominal parameters")
         .map_err(|e| e.to_string())?;
@@ -98,18 +99,8 @@ pub fn analyse(
     let dynamic = dynamic_experiments(&infos)?;
     let settles: Vec<usize> = infos.iter().map(|i| i.settle_samples).collect();
     // ---- Step 2: nuisances, with the parameter file's model.
-    let file_electro = Electro::nominal(nominal.eddy_resistance_ohm);
-    let file_mech = Mech::nominal(nominal.damping_ratio, nominal.resonance_hz);
-    let setup_for = |interpolation| ModelSetup {
-        nominal: &nominal,
-        measure: &measure,
-        step_s: 1.0 / rate_hz,
-        interpolation,
-        substeps: options.substeps,
-        single_run: false,
-    };
-    let estimate = file_nuisances(
-        &setup_for(CurrentBetweenSamples::Linear),
+    let file = FileModel::estimate(
+        (&nominal, &measure, rate_hz),
         options,
         Experiments {
             measurements,
@@ -118,35 +109,20 @@ pub fn analyse(
             dynamic: &dynamic,
             documented_starts: &documented_starts,
         },
-        (&file_electro, &file_mech),
     );
-    record_starts(&mut infos, &documented_starts, &estimate);
+    record_starts(&mut infos, &documented_starts, &file.estimate);
     progress(1);
-    let data = experiment_data(
-        measurements,
-        &settles,
-        &estimate.start_sets[estimate.plan].1,
-    );
-    let nuisance_mech = Mech {
-        skew_samples: estimate.skew,
-        ..file_mech
-    };
-    let (file_preds, sensor_offset, nominal_rms_m) = file_predictions(
-        &setup_for(estimate.interpolation),
-        (&file_electro, &nuisance_mech),
-        &data,
-        &dynamic,
-    );
     // ---- Step 3: noise.
-    let noise_m = noise_level(measurements, &dynamic, &settles, &file_preds);
-    let nuisance = nuisance_report(&estimate, sensor_offset, &infos);
+    let noise_m = noise_level(measurements, &dynamic, &settles, &file.preds);
+    let nuisance = nuisance_report(&file.estimate, file.sensor_offset, &infos);
     // ---- Step 5: split (first: it groups the experiments into the frequency bands that step 4
     // reports on).
     split(&mut infos, &dynamic)?;
     // ---- Step 4: where.
-    let nominal_preds: Vec<Vec<f64>> = file_preds
+    let nominal_preds: Vec<Vec<f64>> = file
+        .preds
         .iter()
-        .map(|p| p.iter().map(|v| v + sensor_offset).collect())
+        .map(|p| p.iter().map(|v| v + file.sensor_offset).collect())
         .collect();
     let where_ = breakdown::analyse(measurements, &nominal_preds, &infos, noise_m, rate_hz);
     let (training, held_out): (Vec<usize>, Vec<usize>) =
@@ -157,7 +133,7 @@ pub fn analyse(
         interpolation,
         skew,
         ..
-    } = estimate;
+    } = file.estimate;
     Ok(Recording {
         rate_hz,
         measure,
@@ -174,10 +150,67 @@ pub fn analyse(
         skew,
         nuisance,
         nominal_preds,
-        nominal_rms_m,
+        nominal_rms_m: file.nominal_rms_m,
         noise_m,
         where_,
     })
+}
+
+/// Step 2's result: the recording's nuisances and the parameter file's model with them.
+struct FileModel {
+    estimate: NuisanceEstimate,
+    /// Its prediction per experiment, without the sensor offset, m.
+    preds: Vec<Vec<f64>>,
+    /// The sensor offset over the dynamic experiments, m.
+    sensor_offset: f64,
+    /// Its RMS residual over the dynamic experiments, m.
+    nominal_rms_m: f64,
+}
+
+impl FileModel {
+    /// The nuisances estimated with the parameter file's model ([`file_nuisances`]) and its
+    /// predictions with them ([`file_predictions`]), on the model of `nominal`, `measure`
+    /// sampled at `rate_hz`.
+    fn estimate(
+        (nominal, measure, rate_hz): (&Nominal, &PreisachMeasure, f64),
+        options: &DiagnoseOptions,
+        x: Experiments<'_>,
+    ) -> FileModel {
+        let file_electro = Electro::nominal(nominal.eddy_resistance_ohm);
+        let file_mech = Mech::nominal(nominal.damping_ratio, nominal.resonance_hz);
+        let setup_for = |interpolation| ModelSetup {
+            nominal,
+            measure,
+            step_s: 1.0 / rate_hz,
+            interpolation,
+            substeps: options.substeps,
+            single_run: false,
+        };
+        let (measurements, settles, dynamic) = (x.measurements, x.settles, x.dynamic);
+        let estimate = file_nuisances(
+            &setup_for(CurrentBetweenSamples::Linear),
+            options,
+            x,
+            (&file_electro, &file_mech),
+        );
+        let data = experiment_data(measurements, settles, &estimate.start_sets[estimate.plan].1);
+        let nuisance_mech = Mech {
+            skew_samples: estimate.skew,
+            ..file_mech
+        };
+        let (preds, sensor_offset, nominal_rms_m) = file_predictions(
+            &setup_for(estimate.interpolation),
+            (&file_electro, &nuisance_mech),
+            &data,
+            dynamic,
+        );
+        FileModel {
+            estimate,
+            preds,
+            sensor_offset,
+            nominal_rms_m,
+        }
+    }
 }
 
 /// The experiments the diagnosis scores on: those with a fundamental of at least

@@ -115,6 +115,8 @@ fn grid_provenance(chosen: &IdentificationGrid, base: &ActuatorParams) -> Value 
     }
 }
 
+/// The provenance of the mass fit: the dataset and its files, what was identified and what
+/// copied, the method, the fit's figures and the cells the data left undetermined.
 fn provenance(
     (dataset, base, base_name): (&Dataset, &ActuatorParams, &str),
     (options, fit_options): (&MassOptions, &FitOptions),
@@ -124,24 +126,7 @@ fn provenance(
 ) -> Provenance {
     let mut d = Map::new();
     d.insert("dataset".into(), json!(dataset.dir.display().to_string()));
-    d.insert(
-        "dataset_files".into(),
-        json!(files
-            .iter()
-            .map(|f| json!({
-                "file": f.file,
-                "samples": f.samples,
-                "negative_displacement_clipped_to_zero": f.clipped_negative,
-                "above_full_stroke": f.above_stroke,
-                "sign_changes_of_m": f.sign_changes,
-                "displacement_noise_m": f.noise_m,
-                "fit_floor_m": f.fit_floor_m,
-                "rows_below_fit_floor_outside_zero_band": f.rows_below_floor,
-                "nrmse_magnetization": f.nrmse_magnetization,
-                "nrmse_displacement": f.nrmse_displacement,
-            }))
-            .collect::<Vec<_>>()),
-    );
+    d.insert("dataset_files".into(), dataset_files(files));
     d.insert(
         "dataset_entries_not_read".into(),
         json!(dataset
@@ -159,67 +144,98 @@ fn provenance(
         actuator_params::Provenance::IDENTIFIED.into(),
         json!(identified_fields(fit_options)),
     );
-    d.insert(
-        "not_identified".into(),
-        json!({
-            "fields": actuator_params::Provenance::DYNAMIC_FIELDS,
-            "values": {
-                "eddy_resistance_ohm": base.actuator.eddy_resistance_ohm,
-                "damping_ratio": base.actuator.damping_ratio,
-                "resonance_hz": base.actuator.resonance_hz,
-            },
-            "reason": "copied from the base parameter file: identifying R_eddy, xi and f0 needs the \
-                       dynamic model (4)-(5) (phase-lag scheme or direct waveform fit), not implemented \
-                       in `maglab identify` yet. The other actuator constants are manufacturer data \
-                       (paper Section 4) and are copied as well.",
-        }),
-    );
-    d.insert(
-        "method".into(),
-        json!({
-            "input": "H = c0 * current_a (static limit of (4))",
-            "output": "M = +/- M_s sqrt(y / (l_m lambda_s)) (static model (6))",
-            "branch_and_initial_state_per_file": choices,
-            "zero_band_fraction_of_stroke": options.zero_band_fraction,
-            "fit_floor": format!(
-                "rows with u below max(zero band, min(sigma_u / sqrt(8 * {SQRT_NOISE_BIAS_MAX}), \
-                 {FIT_FLOOR_MAX_FRACTION} * l_m lambda_s)) are left out: sigma_u (the noise of u after the lag correction) biases \
-                 M = M_s sqrt(u/S) low by sigma_u^2 / (8 u^2) of itself"
-            ),
-            "regression": "M = sum_k w_k (2 f_k - 1), f_k = exact fraction of cell k in P+, \
-                           w >= 0, clarabel QP",
-            "smoothness": fit_options.smoothness,
-            "ridge_toward_base": fit_options.ridge,
-            "row_stride": fit_options.row_stride,
-        }),
-    );
-    d.insert(
-        "fit".into(),
-        json!({
-            "rows": result.rows,
-            "selected_rows_left_out_by_stride": result.strided_out,
-            "rms_residual_a_per_m": result.rms_residual,
-            "output_range_a_per_m": result.output_scale,
-            "solver": result.solver,
-            "samples_outside_grid": result.outside.iter().map(|(l, n)| json!({"file": l, "samples": n})).collect::<Vec<_>>(),
-            "sum_of_weights_a_per_m": result.weights.iter().sum::<f64>(),
-            "saturation_magnetization_a_per_m": base.actuator.saturation_magnetization_a_per_m,
-        }),
-    );
+    d.insert("not_identified".into(), not_identified(base));
+    d.insert("method".into(), method(options, fit_options, choices));
+    d.insert("fit".into(), fit_figures(result, base));
     d.insert(
         "unexcited_cells".into(),
-        json!({
-            "count": result.unexcited.len(),
-            "treatment": fit_options.unexcited.name(),
-            "meaning": "cells whose P+ fraction never changed over the data: the data do not \
-                        determine their masses; `keep-prior` = base file's mass kept, `zero` = set \
-                        to 0, `regularized` = set by the smoothness/ridge terms only",
-            "cells_i_j": result.unexcited.iter().map(|&k| { let (i, j) = cell_of_index(k); json!([i, j]) }).collect::<Vec<_>>(),
-        }),
+        unexcited_cells(result, fit_options),
     );
     Provenance {
         source: "maglab identify (Preisach masses identified; R_eddy, xi, f0 copied from base)"
             .into(),
         details: d,
     }
+}
+
+/// Per record: its samples, what was clipped or left out, its noise and fit errors.
+fn dataset_files(files: &[FileReport]) -> Value {
+    json!(files
+        .iter()
+        .map(|f| json!({
+            "file": f.file,
+            "samples": f.samples,
+            "negative_displacement_clipped_to_zero": f.clipped_negative,
+            "above_full_stroke": f.above_stroke,
+            "sign_changes_of_m": f.sign_changes,
+            "displacement_noise_m": f.noise_m,
+            "fit_floor_m": f.fit_floor_m,
+            "rows_below_fit_floor_outside_zero_band": f.rows_below_floor,
+            "nrmse_magnetization": f.nrmse_magnetization,
+            "nrmse_displacement": f.nrmse_displacement,
+        }))
+        .collect::<Vec<_>>())
+}
+
+/// The dynamic constants the mass fit copies from the base file, and why.
+fn not_identified(base: &ActuatorParams) -> Value {
+    json!({
+        "fields": actuator_params::Provenance::DYNAMIC_FIELDS,
+        "values": {
+            "eddy_resistance_ohm": base.actuator.eddy_resistance_ohm,
+            "damping_ratio": base.actuator.damping_ratio,
+            "resonance_hz": base.actuator.resonance_hz,
+        },
+        "reason": "copied from the base parameter file: R_eddy, xi and f0 are fitted with the \
+                   dynamic model (4)-(5) on the dataset's dynamic records (phase-lag scheme and \
+                   direct waveform fit), and this dataset has none. The other actuator constants \
+                   are manufacturer data (paper Section 4) and are copied as well.",
+    })
+}
+
+/// The static inversion (H from the current, M from the displacement), the rows left out and
+/// the regression with its regularization.
+fn method(options: &MassOptions, fit_options: &FitOptions, choices: &[Value]) -> Value {
+    json!({
+        "input": "H = c0 * current_a (static limit of (4))",
+        "output": "M = +/- M_s sqrt(y / (l_m lambda_s)) (static model (6))",
+        "branch_and_initial_state_per_file": choices,
+        "zero_band_fraction_of_stroke": options.zero_band_fraction,
+        "fit_floor": format!(
+            "rows with u below max(zero band, min(sigma_u / sqrt(8 * {SQRT_NOISE_BIAS_MAX}), \
+             {FIT_FLOOR_MAX_FRACTION} * l_m lambda_s)) are left out: sigma_u (the noise of u after the lag correction) biases \
+             M = M_s sqrt(u/S) low by sigma_u^2 / (8 u^2) of itself"
+        ),
+        "regression": "M = sum_k w_k (2 f_k - 1), f_k = exact fraction of cell k in P+, \
+                       w >= 0, clarabel QP",
+        "smoothness": fit_options.smoothness,
+        "ridge_toward_base": fit_options.ridge,
+        "row_stride": fit_options.row_stride,
+    })
+}
+
+/// The regression's rows, residual, solver and the sum of the masses beside `M_s`.
+fn fit_figures(result: &FitResult, base: &ActuatorParams) -> Value {
+    json!({
+        "rows": result.rows,
+        "selected_rows_left_out_by_stride": result.strided_out,
+        "rms_residual_a_per_m": result.rms_residual,
+        "output_range_a_per_m": result.output_scale,
+        "solver": result.solver,
+        "samples_outside_grid": result.outside.iter().map(|(l, n)| json!({"file": l, "samples": n})).collect::<Vec<_>>(),
+        "sum_of_weights_a_per_m": result.weights.iter().sum::<f64>(),
+        "saturation_magnetization_a_per_m": base.actuator.saturation_magnetization_a_per_m,
+    })
+}
+
+/// The cells whose `P+` fraction never changed over the data, and how their masses were set.
+fn unexcited_cells(result: &FitResult, fit_options: &FitOptions) -> Value {
+    json!({
+        "count": result.unexcited.len(),
+        "treatment": fit_options.unexcited.name(),
+        "meaning": "cells whose P+ fraction never changed over the data: the data do not \
+                    determine their masses; `keep-prior` = base file's mass kept, `zero` = set \
+                    to 0, `regularized` = set by the smoothness/ridge terms only",
+        "cells_i_j": result.unexcited.iter().map(|&k| { let (i, j) = cell_of_index(k); json!([i, j]) }).collect::<Vec<_>>(),
+    })
 }

@@ -70,21 +70,20 @@ impl CurrentLoop {
         let tau_l = coil_time_constant_s.max(0.0);
         let a0 = k / tau_f;
         let a1 = (1.0 + k * tau_l) / tau_f;
-        let output = [a0, k * tau_l / tau_f];
         let step = LinearStep::new([[0.0, 1.0], [-a0, -a1]], [0.0, 1.0], delta_s);
-        let at = |x: [f64; 2]| output[0] * x[0] + output[1] * x[1];
-        let free = [
-            at(step.step([1.0, 0.0], 0.0, 0.0)),
-            at(step.step([0.0, 1.0], 0.0, 0.0)),
-        ];
-        let forced = at(step.step([0.0, 0.0], 1.0, 1.0));
-        CurrentLoop {
+        let mut current_loop = CurrentLoop {
             step,
-            output,
-            free,
-            forced,
+            output: [a0, k * tau_l / tau_f],
+            free: [0.0; 2],
+            forced: 0.0,
             emf_impedance: tau_l / c0_per_m,
-        }
+        };
+        let response = |x: [f64; 2], c: f64| current_loop.output(step.step(x, c, c));
+        let free = [response([1.0, 0.0], 0.0), response([0.0, 1.0], 0.0)];
+        let forced = response([0.0, 0.0], 1.0);
+        current_loop.free = free;
+        current_loop.forced = forced;
+        current_loop
     }
 
     /// The state at rest under a constant input `c` (`T(0) = 1`: the output is `c`).
