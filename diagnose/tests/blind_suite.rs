@@ -46,7 +46,9 @@ fn blind_suite_names_the_right_effect() {
         seconds[seconds.len() - 1],
         started.elapsed().as_secs_f64()
     );
-    // Every case's gaps lie in the drawn 5–30 % band (or the case is noise only).
+    // Every case's gaps lie in the drawn 5–30 % band (or the case is noise only), or fall short
+    // of their target where none of the effect's drawn shapes reaches it
+    // (`maglab_plant::suite::REACHED_SHARE`; counted below, never silently).
     // In the varied design an effect's plausible range may not reach 5 % at the frequencies a
     // case was drawn with (a 200 Hz sensor lag seen up to 270 Hz): such cases stay in, weaker.
     // So may an effect on a rod the coil cannot saturate (rod mode: its loops strain the rod less).
@@ -61,10 +63,22 @@ fn blind_suite_names_the_right_effect() {
         }
         _ => 0.0,
     };
+    let mut short = Vec::new();
     for o in &outcomes {
-        for (g, e) in o.case.gaps.iter().zip(&o.case.effects) {
+        for (i, (g, e)) in o.case.gaps.iter().zip(&o.case.effects).enumerate() {
+            let in_band = (lowest..=0.32).contains(g);
+            if !in_band && *g < lowest && !o.case.reached(i) {
+                short.push(format!(
+                    "case {} {}: {:.1} % for {:.1} %",
+                    o.case.seed,
+                    e.spec.name,
+                    100.0 * g,
+                    100.0 * o.case.target_gaps[i]
+                ));
+                continue;
+            }
             assert!(
-                (lowest..=0.32).contains(g),
+                in_band,
                 "case {} ({}): gap {:.1} % of {} outside 5–30 %",
                 o.case.seed,
                 o.case.kind.label(),
@@ -72,6 +86,13 @@ fn blind_suite_names_the_right_effect() {
                 e.spec.name
             );
         }
+    }
+    if !short.is_empty() {
+        let _ = writeln!(
+            std::io::stderr(),
+            "effects below the band, short of their target gap in every drawn shape: {}",
+            short.join("; ")
+        );
     }
     // Every miss's report names a recording that would separate its candidates.
     let advice = blind::advice_on_misses(&outcomes);

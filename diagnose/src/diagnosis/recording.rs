@@ -158,6 +158,7 @@ pub fn analyse(
 
 /// Step 2's result: the recording's nuisances and the parameter file's model with them.
 struct FileModel {
+    /// Start states, current between samples, channel skew.
     estimate: NuisanceEstimate,
     /// Its prediction per experiment, without the sensor offset, m.
     preds: Vec<Vec<f64>>,
