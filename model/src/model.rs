@@ -392,7 +392,12 @@ impl EddyStep {
 /// the current loop's command response when there is an amplifier (advancing its state `x`),
 /// the command itself otherwise. Returns its mean and mean square over the substep (exact for
 /// a current linear over it).
-fn coil_current(amplifier: Option<&CurrentLoop>, x: &mut [f64; 2], u0: f64, u1: f64) -> (f64, f64) {
+fn substep_current(
+    amplifier: Option<&CurrentLoop>,
+    x: &mut [f64; 2],
+    u0: f64,
+    u1: f64,
+) -> (f64, f64) {
     let (before, after) = match amplifier {
         Some(l) => {
             let before = l.output(*x);
@@ -469,7 +474,7 @@ fn electro_steps<const SECOND_PATH: bool, const EMF: bool>(
             let fa = j as f64 / s as f64;
             let fb = (j + 1) as f64 / s as f64;
             let (u0, u1) = (c_a + (c_b - c_a) * fa, c_a + (c_b - c_a) * fb);
-            let (i_mean, i2) = coil_current(amplifier.as_ref(), &mut amp_state, u0, u1);
+            let (i_mean, i2) = substep_current(amplifier.as_ref(), &mut amp_state, u0, u1);
             let (mrev, chi) = rev_at_h;
             // w_rev = (1 + χ) H + Γ(H) with the reversible part linearized at H.
             let gamma = m - mrev;
